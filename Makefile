@@ -1,0 +1,42 @@
+# Two commands set up and run everything: `make demo` and `make test`.
+# Each creates the virtual environment .venv when it is missing.
+PYTHON ?= python3.11
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test test-fast lint bench reproduce clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+# Reinstall only when the project's dependencies change.
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/beambench demo --out demo-out
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy
+
+test: lint
+	$(BIN)/python -m pytest -q
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow"
+
+bench: $(STAMP)
+	$(BIN)/beambench bench sim
+	$(BIN)/beambench bench vision
+	$(BIN)/beambench bench daq
+
+reproduce: $(STAMP)
+	$(BIN)/beambench reproduce --out reproduce-out
+
+clean:
+	rm -rf $(VENV) demo-out reproduce-out .pytest_cache .mypy_cache .ruff_cache

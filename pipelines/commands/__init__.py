@@ -1,0 +1,1 @@
+"""One module per ``beambench`` subcommand: ``HELP``, ``add_arguments``, ``run``."""

@@ -1,0 +1,235 @@
+"""The rig configuration: every number of the bench, loaded from TOML.
+
+Each section maps onto a frozen dataclass owned by the package that uses it
+(``sim``: linkage, beam, damping, drive; ``daq``: gauges, potentiometer, daq;
+``vision``: camera, camera_pose, registration; ``pipelines``: synthetic). This
+module does the generic part: unknown, missing or mistyped keys, ``_deg`` spellings
+of ``_rad`` keys, and checks that cross sections. Any problem is a ``RigError``
+naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from daq.config import DaqConfig, GaugeConfig, PotentiometerConfig
+from pipelines.errors import RigError
+from sim.config import BeamConfig, DampingConfig, DriveConfig, LinkageConfig
+from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
+
+DEFAULT_RIG_NAME = "rig.toml"
+
+
+@dataclass(frozen=True)
+class SyntheticConfig:
+    """Imperfections of the built-in synthetic bench (fakes and rendered frames)."""
+
+    seed: int = 20051005
+    strain_noise: float = 2e-6
+    pot_noise_v: float = 0.5e-3
+    clock_drift_ppm: float = 20.0
+    clock_jitter_s: float = 20e-6
+    image_noise_dn: float = 2.0
+    model: str = "auto"
+    warmup_s: float = 6.0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "strain_noise",
+            "pot_noise_v",
+            "clock_jitter_s",
+            "image_noise_dn",
+            "warmup_s",
+        ):
+            v = getattr(self, name)
+            if not math.isfinite(v) or v < 0.0:
+                raise ValueError(f"{name} must be a non-negative finite number, got {v!r}")
+        if not math.isfinite(self.clock_drift_ppm) or abs(self.clock_drift_ppm) > 1000.0:
+            raise ValueError(
+                f"clock_drift_ppm must be within +/-1000, got {self.clock_drift_ppm!r}"
+            )
+        if self.model not in ("auto", "rigid", "modal", "fe"):
+            raise ValueError(f"model must be auto, rigid, modal or fe, got {self.model!r}")
+
+
+SECTIONS: dict[str, type] = {
+    "linkage": LinkageConfig,
+    "beam": BeamConfig,
+    "damping": DampingConfig,
+    "drive": DriveConfig,
+    "gauges": GaugeConfig,
+    "potentiometer": PotentiometerConfig,
+    "daq": DaqConfig,
+    "camera": CameraConfig,
+    "camera_pose": CameraPoseConfig,
+    "registration": RegistrationConfig,
+    "synthetic": SyntheticConfig,
+}
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The whole bench. ``source`` is where it was loaded from (for messages and logs)."""
+
+    linkage: LinkageConfig = field(default_factory=LinkageConfig)
+    beam: BeamConfig = field(default_factory=BeamConfig)
+    damping: DampingConfig = field(default_factory=DampingConfig)
+    drive: DriveConfig = field(default_factory=DriveConfig)
+    gauges: GaugeConfig = field(default_factory=GaugeConfig)
+    potentiometer: PotentiometerConfig = field(default_factory=PotentiometerConfig)
+    daq: DaqConfig = field(default_factory=DaqConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    camera_pose: CameraPoseConfig = field(default_factory=CameraPoseConfig)
+    registration: RegistrationConfig = field(default_factory=RegistrationConfig)
+    synthetic: SyntheticConfig = field(default_factory=SyntheticConfig)
+    source: str = "<defaults>"
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Plain dict of every section (SI values), as recorded in logs and results."""
+        return {name: dataclasses.asdict(getattr(self, name)) for name in SECTIONS}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+
+def default_rig_text() -> str:
+    """The shipped rig.toml (the paper's bench)."""
+    return resources.files("pipelines").joinpath("data", DEFAULT_RIG_NAME).read_text("utf-8")
+
+
+def load_rig(path: str | Path | None = None) -> Rig:
+    """Load and validate a rig file; ``None`` loads the shipped default."""
+    if path is None:
+        return parse_rig(default_rig_text(), source=f"<package>/{DEFAULT_RIG_NAME}")
+    p = Path(path)
+    try:
+        text = p.read_text("utf-8")
+    except FileNotFoundError:
+        raise RigError(str(p), None, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RigError(str(p), None, f"cannot read: {exc}") from None
+    return parse_rig(text, source=str(p))
+
+
+def rig_from_json(text: str, source: str = "<log>") -> Rig:
+    """Rebuild a rig from ``Rig.to_json()`` output (e.g. the ``rig`` record of a log)."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise RigError(source, None, f"rig record is not JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise RigError(source, None, "rig record must be a JSON object")
+    return _build(data, source)
+
+
+def parse_rig(text: str, source: str = "<string>") -> Rig:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RigError(source, None, f"not valid TOML: {exc}") from None
+    return _build(data, source)
+
+
+def _build(data: dict[str, Any], source: str) -> Rig:
+    unknown = sorted(set(data) - set(SECTIONS))
+    if unknown:
+        raise RigError(
+            source, unknown[0], f"unknown section; expected one of {', '.join(SECTIONS)}"
+        )
+    missing = [name for name in SECTIONS if name not in data]
+    if missing:
+        raise RigError(source, missing[0], "section is missing")
+    built: dict[str, Any] = {}
+    for name, cls in SECTIONS.items():
+        section = data[name]
+        if not isinstance(section, dict):
+            raise RigError(source, name, "must be a table of key = value pairs")
+        built[name] = _build_section(cls, section, source, name)
+    rig = Rig(**built, source=source)
+    _cross_check(rig)
+    return rig
+
+
+def _build_section(cls: type, section: dict[str, Any], source: str, name: str) -> Any:
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs: dict[str, Any] = {}
+    for key, value in section.items():
+        target = key
+        if key.endswith("_deg") and key[:-4] + "_rad" in fields:
+            target = key[:-4] + "_rad"
+            value = _convert_degrees(value, source, f"{name}.{key}")
+        if target not in fields:
+            raise RigError(
+                source,
+                f"{name}.{key}",
+                f"unknown key; expected one of {', '.join(sorted(fields))}",
+            )
+        if target in kwargs:
+            raise RigError(source, f"{name}.{key}", "given twice (as _rad and _deg)")
+        kwargs[target] = _coerce(value, hints[target], source, f"{name}.{key}")
+    for fname, f in fields.items():
+        no_default = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+        if fname not in kwargs and no_default:
+            raise RigError(source, f"{name}.{fname}", "key is missing")
+    try:
+        return cls(**kwargs)
+    except ValueError as exc:
+        raise RigError(source, name, str(exc)) from None
+
+
+def _convert_degrees(value: Any, source: str, key: str) -> Any:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise RigError(source, key, f"must be a number of degrees, got {value!r}")
+    return math.radians(float(value))
+
+
+def _coerce(value: Any, hint: Any, source: str, key: str) -> Any:
+    origin = typing.get_origin(hint)
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise RigError(source, key, f"must be a number, got {type(value).__name__} {value!r}")
+        return float(value)
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise RigError(source, key, f"must be an integer, got {type(value).__name__} {value!r}")
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            raise RigError(source, key, f"must be a string, got {type(value).__name__} {value!r}")
+        return value
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise RigError(source, key, f"must be true or false, got {value!r}")
+        return value
+    if origin is tuple:
+        (item,) = {a for a in typing.get_args(hint) if a is not Ellipsis}
+        if not isinstance(value, list | tuple):
+            raise RigError(source, key, f"must be a list, got {type(value).__name__} {value!r}")
+        return tuple(_coerce(v, item, source, key) for v in value)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if value is None:
+            return None
+        return _coerce(value, args[0], source, key)
+    raise TypeError(f"rig loader cannot handle the type {hint!r} of {key}")  # a bug, not input
+
+
+def _cross_check(rig: Rig) -> None:
+    """Checks that involve more than one section."""
+    if rig.gauges.positions_m[-1] >= rig.beam.length_m:
+        raise RigError(
+            rig.source,
+            "gauges.positions_m",
+            f"the last gauge ({rig.gauges.positions_m[-1]!r} m) is not on the beam "
+            f"(free length {rig.beam.length_m!r} m)",
+        )

@@ -1,0 +1,115 @@
+"""Configuration of the camera and the registration object.
+
+Frozen dataclasses validated on construction; a bad value raises ``ValueError``
+whose message starts with the field name.
+
+The beam-plane frame: origin at the beam pivot (the rocker's ground pivot), X along
+the mechanism's ground link (crank pivot towards rocker pivot, Eqs. 1-2), Y to make a
+right-handed frame in the plane of motion; metres.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+ENCODINGS = ("jpeg", "png")
+
+
+def _positive(name: str, value: float) -> None:
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The still camera (paper §4: Canon PowerShot A70, about 3.2 MP, 2048 x 1536).
+
+    ``focal_length_px`` defaults to the A70's wide end (5.4 mm on a 1/2.7" sensor,
+    2.6 um pixels). ``distortion`` is in OpenCV order (k1, k2, p1, p2, k3).
+    ``device`` is a V4L2 index/path, a video file or a folder of stills.
+    """
+
+    width_px: int = 2048
+    height_px: int = 1536
+    frame_rate_hz: float = 15.0
+    encoding: str = "jpeg"
+    jpeg_quality: int = 90
+    exposure_s: float = 0.002
+    latency_s: float = 0.030
+    focal_length_px: float = 2100.0
+    distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    device: str = "0"
+
+    def __post_init__(self) -> None:
+        for name in ("width_px", "height_px"):
+            v = getattr(self, name)
+            if not 16 <= v <= 20000:
+                raise ValueError(f"{name} must be between 16 and 20000, got {v!r}")
+        for name in ("frame_rate_hz", "exposure_s", "focal_length_px"):
+            _positive(name, getattr(self, name))
+        if self.latency_s < 0.0:
+            raise ValueError(f"latency_s must be >= 0, got {self.latency_s!r}")
+        if self.exposure_s * self.frame_rate_hz > 1.0:
+            raise ValueError(
+                f"exposure_s ({self.exposure_s!r}) must be shorter than the frame period "
+                f"(1 / frame_rate_hz = {1.0 / self.frame_rate_hz:.6g} s)"
+            )
+        if self.encoding not in ENCODINGS:
+            raise ValueError(f"encoding must be one of {ENCODINGS}, got {self.encoding!r}")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be between 1 and 100, got {self.jpeg_quality!r}")
+        if len(self.distortion) not in (4, 5, 8):
+            raise ValueError(
+                f"distortion must have 4, 5 or 8 OpenCV coefficients, got {len(self.distortion)}"
+            )
+
+
+@dataclass(frozen=True)
+class CameraPoseConfig:
+    """Where the camera looks at the beam plane from (used by the synthetic camera).
+
+    The optical axis passes through ``target_m`` (x, y in the beam-plane frame) at
+    ``distance_m``; ``tilt_rad`` is the angle between the optical axis and the plane
+    normal, tilting about an axis in the plane at ``tilt_azimuth_rad`` from +X;
+    ``roll_rad`` turns the image about the optical axis.
+    """
+
+    distance_m: float = 2.0
+    target_m: tuple[float, ...] = (0.15, -0.55)
+    tilt_rad: float = math.radians(15.0)
+    tilt_azimuth_rad: float = 0.0
+    roll_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        _positive("distance_m", self.distance_m)
+        if len(self.target_m) != 2:
+            raise ValueError(f"target_m must be (x, y), got {self.target_m!r}")
+        if not 0.0 <= self.tilt_rad < math.radians(80.0):
+            raise ValueError(f"tilt_rad must be in [0, 80 deg), got {self.tilt_rad!r}")
+
+
+@dataclass(frozen=True)
+class RegistrationConfig:
+    """The registration object of paper §4.3: a light plate in the beam plane with two
+    orthogonal dark grooves crossing in a square of side ``square_side_m``.
+
+    ``center_m`` is the square's centre in the beam-plane frame, ``angle_rad`` the
+    direction of the first groove from +X.
+    """
+
+    square_side_m: float = 0.040
+    plate_side_m: float = 0.160
+    center_m: tuple[float, ...] = (0.40, -0.05)
+    angle_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        _positive("square_side_m", self.square_side_m)
+        _positive("plate_side_m", self.plate_side_m)
+        if self.plate_side_m <= 2.0 * self.square_side_m:
+            raise ValueError(
+                f"plate_side_m ({self.plate_side_m!r}) must exceed twice square_side_m "
+                f"({self.square_side_m!r}) so the grooves show on the plate"
+            )
+        if len(self.center_m) != 2:
+            raise ValueError(f"center_m must be (x, y), got {self.center_m!r}")
