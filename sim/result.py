@@ -1,0 +1,65 @@
+"""What a simulation returns: one record shared by every beam model and scene."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Time histories of a beam on a prescribed hub.
+
+    Deflections are relative to the hypothetical rigid beam (the hub line extended),
+    expressed in the hub frame: ``lateral`` perpendicular to the rigid beam, positive
+    toward increasing hub angle; ``longitudinal`` along it, negative when the point is
+    pulled in. Strains are surface strains at the gauges (Eqs. 50-52, z = t/2,
+    positive in tension on the surface facing increasing hub angle... see
+    ``strain_sign`` in the model docs).
+
+    Attributes
+    ----------
+    time_s : (N,) output times.
+    hub_angle_rad : (N,) prescribed hub angle.
+    tip_lateral_m, tip_longitudinal_m : (N,) tip deflection.
+    stations_m : (S,) distances from the clamp where the shape is sampled (0 and L included).
+    station_lateral_m, station_longitudinal_m : (N, S) deflection at the stations.
+    gauge_positions_m : (G,) distances from the clamp.
+    strain : (N, G) surface strain at the gauges (dimensionless, m/m).
+    model : model name ("rigid", "modal", "fe-flxdyn", "fe-corot", ...).
+    settings : model settings and, for ``auto``, the choice and its error estimate.
+    wall_time_s : the solve alone, not set-up or output.
+    """
+
+    time_s: FloatArray
+    hub_angle_rad: FloatArray
+    tip_lateral_m: FloatArray
+    tip_longitudinal_m: FloatArray
+    stations_m: FloatArray
+    station_lateral_m: FloatArray
+    station_longitudinal_m: FloatArray
+    gauge_positions_m: FloatArray
+    strain: FloatArray
+    model: str
+    wall_time_s: float
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = self.time_s.shape[0]
+        for name in ("hub_angle_rad", "tip_lateral_m", "tip_longitudinal_m"):
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"{name} must have shape ({n},), got {getattr(self, name).shape}")
+        s = self.stations_m.shape[0]
+        for name in ("station_lateral_m", "station_longitudinal_m"):
+            if getattr(self, name).shape != (n, s):
+                raise ValueError(
+                    f"{name} must have shape ({n}, {s}), got {getattr(self, name).shape}"
+                )
+        g = self.gauge_positions_m.shape[0]
+        if self.strain.shape != (n, g):
+            raise ValueError(f"strain must have shape ({n}, {g}), got {self.strain.shape}")
