@@ -18,9 +18,11 @@ class SimResult:
     Deflections are relative to the hypothetical rigid beam (the hub line extended),
     expressed in the hub frame: ``lateral`` perpendicular to the rigid beam, positive
     toward increasing hub angle; ``longitudinal`` along it, negative when the point is
-    pulled in. Strains are surface strains at the gauges (Eqs. 50-52, z = t/2,
-    positive in tension on the surface facing increasing hub angle... see
-    ``strain_sign`` in the model docs).
+    pulled in. Strains are surface strains at the gauges (Eqs. 50-52) on the
+    surface facing increasing hub angle (z = +t/2 on the +lateral side):
+    strain = du/dx - (t/2) d2w/dx2 in the linear part, so a beam bent toward -lateral
+    near the clamp (as under the static tip weight, which acts toward -lateral) reads
+    positive strain, like the paper's Table 2.
 
     Attributes
     ----------
