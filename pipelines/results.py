@@ -23,7 +23,7 @@ import json
 import logging
 import math
 import os
-import tempfile
+import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -419,9 +419,9 @@ def write_results(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
         raise FileNotFoundError(f"{out}: folder {out.parent} does not exist")
     encoded = ds.copy(deep=False)
     encoded.attrs = _encode_attrs(ds.attrs)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
+    # A fresh name beside the target (same file system, so the rename is atomic); not
+    # mkstemp, whose 0600 mode would stick to the renamed file.
+    tmp = out.parent / f".{out.name}.{uuid.uuid4().hex}.tmp"
     try:
         encoded.to_netcdf(tmp, engine="h5netcdf")
         os.replace(tmp, out)
@@ -472,3 +472,26 @@ def rig_json_of(ds: xr.Dataset) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise ValueError("rig_json attribute is not a JSON object")
     return value
+
+
+def crank_period_s(ds: xr.Dataset) -> float:
+    """The crank period recorded in the rig configuration (NaN when not recorded)."""
+    try:
+        freq = float(rig_json_of(ds)["linkage"]["crank_frequency_hz"])
+    except (KeyError, TypeError, ValueError, json.JSONDecodeError):
+        return math.nan
+    return 1.0 / freq if math.isfinite(freq) and freq > 0 else math.nan
+
+
+def steady_state_mask(ds: xr.Dataset, cycles: int = 3) -> NDArray[np.bool_]:
+    """(N,) bool: the samples of the last ``cycles`` crank cycles (the paper's Fig. 11).
+
+    The whole run when the crank period is unknown or the run is shorter.
+    """
+    if cycles < 1:
+        raise ValueError(f"cycles must be at least 1, got {cycles}")
+    t = np.asarray(ds["time"].values, dtype=np.float64)
+    period = crank_period_s(ds)
+    if not math.isfinite(period) or t[-1] - t[0] <= cycles * period:
+        return np.ones(t.shape, dtype=bool)
+    return np.asarray(t >= t[-1] - cycles * period)
