@@ -99,15 +99,15 @@ class ErrorMetric:
 # Scalar metrics in metres; strain metrics are per gauge (arrays over ``gauge``).
 ERROR_METRICS: tuple[ErrorMetric, ...] = (
     ErrorMetric("tip_lateral_image_vs_sim_rms_m", "tip lateral, image - sim, RMS", "m"),
-    ErrorMetric("tip_lateral_image_vs_sim_max_m", "tip lateral, image - sim, max |.|", "m"),
+    ErrorMetric("tip_lateral_image_vs_sim_max_m", "tip lateral, image - sim, max abs", "m"),
     ErrorMetric("tip_lateral_strain_vs_image_rms_m", "tip lateral, strain - image, RMS", "m"),
-    ErrorMetric("tip_lateral_strain_vs_image_max_m", "tip lateral, strain - image, max |.|", "m"),
+    ErrorMetric("tip_lateral_strain_vs_image_max_m", "tip lateral, strain - image, max abs", "m"),
     ErrorMetric("tip_lateral_strain_vs_sim_rms_m", "tip lateral, strain - sim, RMS", "m"),
-    ErrorMetric("tip_lateral_strain_vs_sim_max_m", "tip lateral, strain - sim, max |.|", "m"),
+    ErrorMetric("tip_lateral_strain_vs_sim_max_m", "tip lateral, strain - sim, max abs", "m"),
 )
 STRAIN_METRICS: tuple[ErrorMetric, ...] = (
     ErrorMetric("strain_vs_sim_rms", "strain, measured - sim, RMS", "1"),
-    ErrorMetric("strain_vs_sim_max", "strain, measured - sim, max |.|", "1"),
+    ErrorMetric("strain_vs_sim_max", "strain, measured - sim, max abs", "1"),
 )
 COUNT_KEYS = ("n_frames_compared",)
 

@@ -16,6 +16,7 @@ from pipelines.results import (
     REQUIRED_ATTRS,
     VARIABLES,
     make_results,
+    steady_state_mask,
     read_results,
     summarise_errors,
     write_results,
@@ -228,3 +229,21 @@ def test_a_failed_write_does_not_clobber_the_existing_file(tmp_path: Path) -> No
         write_results(ds, path)
     assert path.read_bytes() == b"previous results"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.nc"]
+
+
+def test_steady_state_window_is_the_last_three_crank_cycles() -> None:
+    kw = _inputs()
+    kw["time_s"] = np.arange(N) / 100.0  # 8 s at 100 Hz
+    ds = make_results(**kw)
+    t = ds["time"].values
+    mask = steady_state_mask(ds)
+    period = 1 / 0.92  # the rig's crank frequency
+    assert t[mask][0] == pytest.approx(t[-1] - 3 * period, abs=0.01)
+    assert mask[-1] and mask.sum() == np.count_nonzero(t >= t[-1] - 3 * period)
+    assert steady_state_mask(ds, cycles=8).all()  # longer than the run: all of it
+    rig = json.loads(ds.attrs["rig_json"])
+    del rig["linkage"]
+    ds.attrs["rig_json"] = json.dumps(rig)
+    assert steady_state_mask(ds).all()  # period unknown: all of it
+    with pytest.raises(ValueError, match="cycles"):
+        steady_state_mask(ds, cycles=0)
