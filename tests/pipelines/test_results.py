@@ -16,8 +16,8 @@ from pipelines.results import (
     REQUIRED_ATTRS,
     VARIABLES,
     make_results,
-    steady_state_mask,
     read_results,
+    steady_state_mask,
     summarise_errors,
     write_results,
 )
