@@ -48,3 +48,162 @@ class SinusoidDrive:
         t = np.asarray(t_s, dtype=float)
         w = self.omega_rad_s
         return -self.amplitude_rad * w * w * np.sin(w * t + self.phase_rad)
+
+
+def _times(t_s: ArrayLike) -> FloatArray:
+    return np.asarray(t_s, dtype=float)
+
+
+class FourBarDrive:
+    """The hub angle the crank-rocker itself produces at a constant crank speed.
+
+    Parameters
+    ----------
+    four_bar : a ``sim.four_bar.FourBar`` (any object with ``rocker_angle_rad``,
+        ``rocker_rate_rad_s``, ``rocker_accel_rad_s2`` and ``extrema()``).
+    crank_speed_rad_s : crank angular speed (rad/s; 2 pi * 0.92 Hz on the bench).
+    about : ``"mid"``: rocker angle minus mid-stroke (the true dead-centre extrema's mean),
+        like the paper's Eq. 53; ``"absolute"``: the rocker angle in the frame of Eqs. 1-2.
+    crank_phase_rad : crank angle at t = 0.
+    """
+
+    def __init__(
+        self,
+        four_bar: object,
+        crank_speed_rad_s: float,
+        about: str = "mid",
+        crank_phase_rad: float = 0.0,
+    ) -> None:
+        for attr in ("rocker_angle_rad", "rocker_rate_rad_s", "rocker_accel_rad_s2", "extrema"):
+            if not hasattr(four_bar, attr):
+                raise TypeError(f"four_bar must be a sim.four_bar.FourBar, lacks {attr}")
+        if not np.isfinite(crank_speed_rad_s) or crank_speed_rad_s == 0.0:
+            raise ValueError(
+                f"crank_speed_rad_s must be a finite non-zero number, got {crank_speed_rad_s!r}"
+            )
+        if about not in ("mid", "absolute"):
+            raise ValueError(f"about must be 'mid' or 'absolute', got {about!r}")
+        if not np.isfinite(crank_phase_rad):
+            raise ValueError(f"crank_phase_rad must be finite, got {crank_phase_rad!r}")
+        self.four_bar = four_bar
+        self.crank_speed_rad_s = float(crank_speed_rad_s)
+        self.about = about
+        self.crank_phase_rad = float(crank_phase_rad)
+        self.offset_rad = four_bar.extrema().mid_rad if about == "mid" else 0.0  # type: ignore[attr-defined]
+
+    def crank_angle_rad(self, t_s: ArrayLike) -> FloatArray:
+        return self.crank_phase_rad + self.crank_speed_rad_s * _times(t_s)
+
+    def angle(self, t_s: ArrayLike) -> FloatArray:
+        fb = self.four_bar
+        return np.asarray(fb.rocker_angle_rad(self.crank_angle_rad(t_s)) - self.offset_rad)  # type: ignore[attr-defined]
+
+    def rate(self, t_s: ArrayLike) -> FloatArray:
+        fb = self.four_bar
+        psi = self.crank_angle_rad(t_s)
+        return np.asarray(fb.rocker_rate_rad_s(psi, self.crank_speed_rad_s))  # type: ignore[attr-defined]
+
+    def accel(self, t_s: ArrayLike) -> FloatArray:
+        fb = self.four_bar
+        psi = self.crank_angle_rad(t_s)
+        return np.asarray(fb.rocker_accel_rad_s2(psi, self.crank_speed_rad_s, 0.0))  # type: ignore[attr-defined]
+
+
+class TraceDrive:
+    """A measured hub-angle trace (e.g. the 400 Hz potentiometer), smoothed.
+
+    A cubic smoothing spline (``scipy.interpolate.make_smoothing_spline``) through the
+    finite samples; its first and second derivatives are the rate and acceleration, so the
+    three are consistent. NaN samples (gaps) are dropped.
+
+    Parameters
+    ----------
+    t_s : (N,) sample times, strictly increasing, s.
+    angle_rad : (N,) hub angle, rad; NaN marks a missing sample.
+    smoothing : the spline's penalty lambda (s^3 units of the second-derivative penalty);
+        ``None`` chooses it by generalised cross-validation.
+    """
+
+    def __init__(
+        self, t_s: ArrayLike, angle_rad: ArrayLike, smoothing: float | None = None
+    ) -> None:
+        from scipy.interpolate import make_smoothing_spline
+
+        t = np.asarray(t_s, dtype=float).reshape(-1)
+        y = np.asarray(angle_rad, dtype=float).reshape(-1)
+        if t.shape != y.shape:
+            raise ValueError(
+                f"t_s and angle_rad must have the same length, got {t.size} and {y.size}"
+            )
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
+            raise ValueError("t_s must be finite and strictly increasing")
+        ok = np.isfinite(y)
+        if ok.sum() < 5:
+            raise ValueError(f"angle_rad needs at least 5 finite samples, got {int(ok.sum())}")
+        if smoothing is not None and (not np.isfinite(smoothing) or smoothing < 0.0):
+            raise ValueError(f"smoothing must be a non-negative number or None, got {smoothing!r}")
+        self.t_min_s = float(t[ok][0])
+        self.t_max_s = float(t[ok][-1])
+        self._spline = make_smoothing_spline(t[ok], y[ok], lam=smoothing)
+        self._d1 = self._spline.derivative(1)
+        self._d2 = self._spline.derivative(2)
+
+    def _check(self, t_s: ArrayLike) -> FloatArray:
+        t = _times(t_s)
+        span = self.t_max_s - self.t_min_s
+        if np.any(t < self.t_min_s - 1e-9 * span) or np.any(t > self.t_max_s + 1e-9 * span):
+            raise ValueError(
+                f"t_s must lie within the trace, [{self.t_min_s!r}, {self.t_max_s!r}] s"
+            )
+        return t
+
+    def angle(self, t_s: ArrayLike) -> FloatArray:
+        return np.asarray(self._spline(self._check(t_s)), dtype=float)
+
+    def rate(self, t_s: ArrayLike) -> FloatArray:
+        return np.asarray(self._d1(self._check(t_s)), dtype=float)
+
+    def accel(self, t_s: ArrayLike) -> FloatArray:
+        return np.asarray(self._d2(self._check(t_s)), dtype=float)
+
+
+@dataclass(frozen=True)
+class SpinUpDrive:
+    """The Kane et al. / Simo-Vu-Quoc spin-up profile.
+
+    theta = (w_s / T_s) (t^2 / 2 + (T_s / 2 pi)^2 (cos(2 pi t / T_s) - 1)) for 0 <= t < T_s,
+    theta = w_s (t - T_s / 2) afterwards, and at rest before t = 0; the acceleration
+    (w_s / T_s)(1 - cos(2 pi t / T_s)) is continuous.
+    """
+
+    omega_s_rad_s: float
+    ramp_s: float = 15.0
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.omega_s_rad_s):
+            raise ValueError(f"omega_s_rad_s must be finite, got {self.omega_s_rad_s!r}")
+        if not np.isfinite(self.ramp_s) or self.ramp_s <= 0.0:
+            raise ValueError(f"ramp_s must be a positive finite number, got {self.ramp_s!r}")
+
+    def angle(self, t_s: ArrayLike) -> FloatArray:
+        t = _times(t_s)
+        w, ts = self.omega_s_rad_s, self.ramp_s
+        k = ts / (2.0 * np.pi)
+        tc = np.clip(t, 0.0, ts)
+        ramp = (w / ts) * (0.5 * tc * tc + k * k * (np.cos(tc / k) - 1.0))
+        return np.where(t < ts, ramp, w * (t - 0.5 * ts))
+
+    def rate(self, t_s: ArrayLike) -> FloatArray:
+        t = _times(t_s)
+        w, ts = self.omega_s_rad_s, self.ramp_s
+        k = ts / (2.0 * np.pi)
+        tc = np.clip(t, 0.0, ts)
+        return (w / ts) * (tc - k * np.sin(tc / k))
+
+    def accel(self, t_s: ArrayLike) -> FloatArray:
+        t = _times(t_s)
+        w, ts = self.omega_s_rad_s, self.ramp_s
+        inside = (t >= 0.0) & (t < ts)
+        return np.where(
+            inside, (w / ts) * (1.0 - np.cos(2.0 * np.pi * np.clip(t, 0.0, ts) / ts)), 0.0
+        )

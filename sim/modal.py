@@ -136,7 +136,7 @@ class ModalModel:
             - (rate**2)[:, None] * (q @ self.rotation_stiffness.T)
             - acc[:, None] * mi.euler[None, :]
         )
-        out: FloatArray = np.linalg.solve(mi.mass, force.T).T
+        out: FloatArray = np.asarray(np.linalg.solve(mi.mass, force.T).T, dtype=float)
         return out
 
     def kinetic_energy_j(
