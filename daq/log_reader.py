@@ -106,7 +106,7 @@ def _open(path: str | os.PathLike[str]) -> tuple[IO[bytes], SeekingReader]:
     except READ_ERRORS as exc:
         f.close()
         raise LogError(str(p), f"truncated or corrupt log: no valid footer ({exc})") from None
-    if summary is None or (not summary.chunk_indexes and not summary.channels):
+    if summary is None:
         f.close()
         raise LogError(str(p), "log has no summary (the writer did not finish)")
     return f, reader

@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import importlib
+import math
+import sys
+from typing import Any
 
-from pipelines.commands._common import add_rig_argument, not_available, rig_from_args
+from pipelines.commands._common import add_rig_argument, rig_from_args
+from pipelines.errors import BeambenchError
+from pipelines.rig import Rig
 
 HELP = "record a run (DAQ + camera) to a synchronized MCAP log"
 
@@ -17,6 +23,95 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--realtime", action="store_true", help="pace the fake like the hardware")
 
 
+def camera_info_from_rig(rig: Rig) -> dict[str, Any]:
+    """``/camera/info`` content from the rig's nominal intrinsics (principal point at the
+    image centre, OpenCV plumb_bob distortion)."""
+    cam = rig.camera
+    f = cam.focal_length_px
+    cx, cy = (cam.width_px - 1) / 2.0, (cam.height_px - 1) / 2.0
+    return {
+        "width": cam.width_px,
+        "height": cam.height_px,
+        "K": [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0],
+        "D": list(cam.distortion),
+        "distortion_model": "plumb_bob",
+    }
+
+
+def hardware_devices(rig: Rig) -> tuple[Any, Any, dict[str, Any]]:
+    """NI-DAQmx strain DAQ and an OpenCV camera (device, video file or stills folder)."""
+    from daq.errors import DriverUnavailableError
+    from daq.nidaq import NiStrainDaq, check_nidaqmx
+    from daq.opencv_camera import open_camera
+
+    try:
+        check_nidaqmx()
+    except DriverUnavailableError as exc:
+        raise BeambenchError(f"--backend hardware: {exc}") from None
+    daq_device = NiStrainDaq(rig.gauges, rig.potentiometer, rig.daq)
+    camera = open_camera(
+        rig.camera.device,
+        width_px=rig.camera.width_px,
+        height_px=rig.camera.height_px,
+        frame_rate_hz=rig.camera.frame_rate_hz,
+        encoding=rig.camera.encoding,
+        jpeg_quality=rig.camera.jpeg_quality,
+    )
+    return daq_device, camera, camera_info_from_rig(rig)
+
+
+def _progress_bar(done_s: float, total_s: float) -> None:
+    width = 30
+    frac = min(1.0, done_s / total_s)
+    bar = "#" * round(frac * width)
+    sys.stderr.write(f"\rcapture [{bar:<{width}}] {done_s:7.1f}/{total_s:.1f} s")
+    if frac >= 1.0:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+
+
 def run(args: argparse.Namespace) -> int:
-    rig_from_args(args)
-    return not_available("capture", 4)
+    from pipelines.capture import capture_run
+
+    rig = rig_from_args(args)
+    if not math.isfinite(args.duration) or args.duration <= 0:
+        raise BeambenchError(
+            f"--duration must be a positive number of seconds, got {args.duration}"
+        )
+    if args.backend == "fake":
+        try:
+            synthetic = importlib.import_module("pipelines.synthetic")
+        except ImportError as exc:
+            raise BeambenchError(
+                f"--backend fake: the synthetic bench is not available ({exc})"
+            ) from None
+        make_synthetic_devices = getattr(synthetic, "make_synthetic_devices", None)
+        if make_synthetic_devices is None:
+            raise BeambenchError("--backend fake: the synthetic bench is not available yet")
+        daq_device, camera, camera_info = make_synthetic_devices(
+            rig, args.duration, realtime=args.realtime, seed=rig.synthetic.seed
+        )
+    else:
+        daq_device, camera, camera_info = hardware_devices(rig)
+    progress = _progress_bar if sys.stderr.isatty() else None
+    s = capture_run(
+        rig,
+        daq_device,
+        camera,
+        args.out,
+        args.duration,
+        realtime=args.realtime or args.backend == "hardware",
+        camera_info=camera_info,
+        progress=progress,
+    )
+    print(f"wrote {s.out_path} ({s.log_bytes / 1e6:.2f} MB), run {s.run_id}")
+    print(
+        f"  {s.samples} samples at {rig.daq.output_rate_hz:g} Hz (acquired at "
+        f"{s.acquisition_rate_hz:g} Hz), {s.frames} frames, {s.events} events"
+    )
+    print(
+        f"  dropped samples {s.dropped_samples}, dropped frames {s.dropped_frames}, "
+        f"overruns {s.overruns}, clipping {s.clipping_events}, device errors {s.device_errors}"
+    )
+    print(f"  wall {s.wall_time_s:.2f} s, CPU {s.cpu_time_s:.2f} s")
+    return 0

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from pipelines.commands._common import not_available
+from pipelines.errors import BeambenchError
 
 HELP = "restore every flushed message of a broken log into a new file"
 
@@ -15,4 +16,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return not_available("recover", 4)
+    from daq.log import LogError, recover_log
+
+    out = Path(args.out)
+    if out.exists():
+        raise BeambenchError(f"{out}: already exists; choose another --out (never overwritten)")
+    if not out.parent.is_dir():
+        raise BeambenchError(f"{out}: the folder {out.parent} does not exist")
+    try:
+        s = recover_log(args.log, out)
+    except LogError as exc:
+        raise BeambenchError(str(exc).replace(" (try beambench recover)", "")) from None
+    except FileExistsError as exc:
+        raise BeambenchError(str(exc)) from None
+    except OSError as exc:
+        raise BeambenchError(f"{out}: cannot write: {exc.strerror or exc}") from None
+    state = "complete (had its footer)" if s.complete else "truncated" if s.truncated else "open"
+    print(f"recovered {s.messages} messages from {args.log} ({state}) into {s.out_path}")
+    for topic, n in sorted(s.messages_by_topic.items()):
+        print(f"  {topic:<16} {n}")
+    if s.last_log_time_ns is not None:
+        print(f"  last message at {s.last_log_time_ns * 1e-9:.3f} s of run time")
+    if s.bad_chunks:
+        print(f"  {s.bad_chunks} unfinished chunk(s) dropped (never fully flushed)")
+    return 0
