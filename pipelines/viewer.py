@@ -80,10 +80,14 @@ _LEVELS = {
 class EventLike(Protocol):
     """What ``log_events`` needs of an event (``daq.log`` records have these)."""
 
-    t_ns: int
-    level: Any
-    name: str
-    message: str
+    @property
+    def t_ns(self) -> int: ...
+    @property
+    def level(self) -> Any: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def message(self) -> str: ...
 
 
 @dataclass(frozen=True)
