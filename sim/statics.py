@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -62,7 +62,7 @@ def _result(
     strain: FloatArray,
     model: str,
     wall: float,
-    settings: dict[str, object],
+    settings: Mapping[str, object],
 ) -> SimResult:
     return SimResult(
         time_s=np.zeros(1),
@@ -166,7 +166,7 @@ def elastica_tip_deflection(beam: BeamProperties, tip_force_n: float) -> tuple[f
         -float(res.tip_lateral_m[0]),
         -float(res.tip_longitudinal_m[0]),
         float(res.settings["tip_slope_rad"]),
-    )  # type: ignore[arg-type]
+    )
 
 
 def solve_static_elastica(
