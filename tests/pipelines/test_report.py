@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -60,9 +61,13 @@ def _table(md: str) -> dict[str, tuple[str, str]]:
     return rows
 
 
-def test_report_has_its_files_valid_pngs_and_the_error_numbers(tmp_path: Path) -> None:
+def test_report_has_its_files_valid_pngs_and_the_error_numbers(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     ds = _results()
-    path = write_report(ds, tmp_path / "out", title="Synthetic run", notes=["made by a test"])
+    with caplog.at_level(logging.WARNING):
+        path = write_report(ds, tmp_path / "out", title="Synthetic run", notes=["made by a test"])
+    assert not caplog.records, [r.getMessage() for r in caplog.records]  # e.g. matplotlib's
     assert path == tmp_path / "out" / REPORT_NAME
     names = sorted(p.name for p in path.parent.iterdir())
     assert names == sorted([REPORT_NAME, *PLOTS.values()])
