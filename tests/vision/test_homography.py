@@ -1,0 +1,97 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from vision.homography import (
+    DegeneratePointsError,
+    apply_homography,
+    collineation_4pt,
+    dlt_homography,
+)
+
+SQUARE = np.array([[0.0, 0.0], [0.04, 0.0], [0.04, 0.04], [0.0, 0.04]])
+
+
+def _random_h(rng: np.random.Generator) -> np.ndarray:
+    h = np.eye(3) + rng.normal(scale=[[0.3, 0.3, 50], [0.3, 0.3, 50], [1e-4, 1e-4, 0]])
+    h[:2, :2] *= 1000.0
+    return h
+
+
+def test_collineation_maps_the_four_points_exactly() -> None:
+    img = np.array([[100.0, 120.0], [410.0, 90.0], [450.0, 400.0], [80.0, 380.0]])
+    fit = collineation_4pt(img, SQUARE)
+    np.testing.assert_allclose(apply_homography(fit.matrix, img), SQUARE, atol=1e-13)
+    assert fit.rms_residual < 1e-12
+
+
+def test_collineation_recovers_a_known_homography() -> None:
+    rng = np.random.default_rng(3)
+    h = _random_h(rng)
+    dst = apply_homography(h, SQUARE)
+    fit = collineation_4pt(SQUARE, dst)
+    np.testing.assert_allclose(fit.matrix / fit.matrix[2, 2], h / h[2, 2], rtol=1e-9, atol=1e-9)
+    # And every other point of the plane follows.
+    other = rng.uniform(-0.5, 0.5, size=(50, 2))
+    np.testing.assert_allclose(
+        apply_homography(fit.matrix, other), apply_homography(h, other), rtol=1e-8, atol=1e-6
+    )
+
+
+def test_dlt_agrees_with_the_collineation_on_four_points_and_fits_many() -> None:
+    rng = np.random.default_rng(4)
+    h = _random_h(rng)
+    dst = apply_homography(h, SQUARE)
+    a = collineation_4pt(SQUARE, dst).matrix
+    b = dlt_homography(SQUARE, dst).matrix
+    np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-7)
+    many = rng.uniform(-0.2, 0.2, size=(30, 2))
+    fit = dlt_homography(many, apply_homography(h, many))
+    assert fit.rms_residual < 1e-8
+    assert fit.condition < 1e4
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-0.2, 0.2), min_size=8, max_size=8),
+    st.floats(-0.5, 0.5),
+    st.floats(0.5, 2.0),
+)
+def test_inverse_round_trip(jitter: list[float], angle: float, scale: float) -> None:
+    quad = SQUARE * 10 + np.reshape(jitter, (4, 2)) * 0.4
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.array([[c, -s], [s, c]]) * scale
+    dst = (quad @ rot.T) * 100 + 500 + np.reshape(jitter[::-1], (4, 2)) * 30
+    try:
+        fit = collineation_4pt(quad, dst)
+    except DegeneratePointsError:
+        return
+    pts = quad.mean(axis=0) + np.reshape(jitter, (4, 2))
+    back = apply_homography(np.linalg.inv(fit.matrix), apply_homography(fit.matrix, pts))
+    np.testing.assert_allclose(back, pts, atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    ("pts", "words"),
+    [
+        ([[0, 0], [1, 0], [2, 0.0001], [0, 1]], "nearly collinear"),
+        ([[0, 0], [1, 0], [1, 0], [0, 1]], "coincide"),
+        ([[0, 0], [1, 0], [1, 1]], "at least 4"),
+    ],
+)
+def test_degenerate_input_is_refused_with_a_reason(pts: list, words: str) -> None:
+    dst = SQUARE[: len(pts)]
+    with pytest.raises(DegeneratePointsError, match=words):
+        collineation_4pt(np.array(pts, float), dst)
+
+
+def test_shape_and_finiteness_are_checked() -> None:
+    with pytest.raises(ValueError, match="src must have shape"):
+        dlt_homography(np.zeros((4, 3)), SQUARE)
+    with pytest.raises(ValueError, match="finite"):
+        dlt_homography(np.full((4, 2), np.nan), SQUARE)
+    with pytest.raises(ValueError, match="same shape"):
+        dlt_homography(np.vstack([SQUARE, [[1, 2]]]), SQUARE)

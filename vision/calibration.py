@@ -1,0 +1,189 @@
+"""Calibration: the image <-> beam-plane mapping of one camera placement.
+
+A :class:`Calibration` holds registration point pairs (raw image pixels and beam-plane
+metres), optional intrinsics and lens distortion, and the beam's length and width. The
+homography maps *undistorted* pixels to the plane; with four pairs it is the paper's
+exact collineation (Eqs. 42-46), with more the normalized DLT.
+
+CAL.json layout::
+
+    {"registration": {"image_points_px": [[x, y], ...], "plane_points_m": [[X, Y], ...]},
+     "camera": {"matrix": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "distortion": [k1, ...]},
+     "beam": {"length_m": 0.835, "width_m": 0.01905}}
+
+``camera`` and ``beam`` (and each of their keys) are optional.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from vision.camera import as_points, check_intrinsics, distort_points_px, undistort_points_px
+from vision.homography import (
+    MAX_CONDITION,
+    HomographyFit,
+    apply_homography,
+    collineation_4pt,
+    dlt_homography,
+)
+
+DEFAULT_BEAM_LENGTH_M = 0.835
+DEFAULT_BEAM_WIDTH_M = 0.01905
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """Registration of one camera placement to the beam plane.
+
+    Parameters
+    ----------
+    image_points_px : (N, 2) raw (distorted) pixel points (x, y), N >= 4.
+    plane_points_m : (N, 2) the same points in the beam-plane frame, m.
+    camera_matrix : (3, 3) intrinsics or None (no distortion correction).
+    distortion : OpenCV coefficients (k1, k2, p1, p2[, k3...]) or None.
+    beam_length_m, beam_width_m : free length (clamp to tip) and width of the beam, m.
+    """
+
+    image_points_px: NDArray[np.float64]
+    plane_points_m: NDArray[np.float64]
+    camera_matrix: NDArray[np.float64] | None = None
+    distortion: NDArray[np.float64] | None = None
+    beam_length_m: float = DEFAULT_BEAM_LENGTH_M
+    beam_width_m: float = DEFAULT_BEAM_WIDTH_M
+    fit: HomographyFit = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        img = as_points(self.image_points_px, "image_points_px")
+        pln = as_points(self.plane_points_m, "plane_points_m")
+        if img.shape != pln.shape:
+            raise ValueError(
+                "image_points_px and plane_points_m must have the same shape, "
+                f"got {img.shape} and {pln.shape}"
+            )
+        k, d = check_intrinsics(self.camera_matrix, self.distortion)
+        for name in ("beam_length_m", "beam_width_m"):
+            v = getattr(self, name)
+            if not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"{name} must be a positive number, got {v!r}")
+        if self.beam_width_m >= self.beam_length_m:
+            raise ValueError("beam_width_m must be smaller than beam_length_m")
+        object.__setattr__(self, "image_points_px", img)
+        object.__setattr__(self, "plane_points_m", pln)
+        object.__setattr__(self, "camera_matrix", k)
+        object.__setattr__(self, "distortion", d)
+        ideal = undistort_points_px(img, k, d)
+        try:
+            fit = collineation_4pt(ideal, pln) if len(img) == 4 else dlt_homography(ideal, pln)
+        except ValueError as exc:
+            raise ValueError(f"registration: {exc}") from None
+        if not fit.condition < MAX_CONDITION:
+            raise ValueError(
+                f"registration: the homography is badly conditioned (condition {fit.condition:.3g})"
+            )
+        w = ideal @ fit.matrix[2, :2] + fit.matrix[2, 2]
+        if not (np.all(w > 0) or np.all(w < 0)):
+            raise ValueError(
+                "registration: the points are not in a consistent order "
+                "(the plane's horizon crosses them)"
+            )
+        object.__setattr__(self, "fit", fit)
+
+    @property
+    def plane_from_ideal(self) -> NDArray[np.float64]:
+        """(3, 3) homography from undistorted pixels to beam-plane metres."""
+        return self.fit.matrix
+
+    def image_to_plane_m(self, points_px: ArrayLike) -> NDArray[np.float64]:
+        """Raw pixel points (N, 2) to beam-plane points (N, 2), m."""
+        ideal = undistort_points_px(points_px, self.camera_matrix, self.distortion)
+        return apply_homography(self.fit.matrix, ideal)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "registration": {
+                "image_points_px": self.image_points_px.tolist(),
+                "plane_points_m": self.plane_points_m.tolist(),
+            },
+            "beam": {"length_m": self.beam_length_m, "width_m": self.beam_width_m},
+        }
+        cam: dict[str, Any] = {}
+        if self.camera_matrix is not None:
+            cam["matrix"] = self.camera_matrix.tolist()
+        if self.distortion is not None:
+            cam["distortion"] = self.distortion.tolist()
+        if cam:
+            out["camera"] = cam
+        return out
+
+    def to_json(self) -> str:
+        """The CAL.json text (see the module docstring)."""
+        return json.dumps(self.to_dict(), indent=2)
+
+
+def plane_to_image_px(points_m: ArrayLike, calibration: Calibration) -> NDArray[np.float64]:
+    """Beam-plane points (N, 2), m, to raw image pixels (N, 2) through the homography
+    and the lens distortion (for overlays)."""
+    pts = as_points(np.asarray(points_m, dtype=np.float64).reshape(-1, 2), "points_m")
+    ideal = apply_homography(np.linalg.inv(calibration.fit.matrix), pts)
+    return distort_points_px(ideal, calibration.camera_matrix, calibration.distortion)
+
+
+def calibration_from_dict(data: Any) -> Calibration:
+    """Build a :class:`Calibration` from the parsed CAL.json structure."""
+    if not isinstance(data, dict):
+        raise ValueError("the top level must be an object")
+    unknown = set(data) - {"registration", "camera", "beam"}
+    if unknown:
+        raise ValueError(f"unknown key(s) {sorted(unknown)}")
+    reg = data.get("registration")
+    if not isinstance(reg, dict):
+        raise ValueError("'registration' object is missing")
+    for key in ("image_points_px", "plane_points_m"):
+        if key not in reg:
+            raise ValueError(f"registration.{key} is missing")
+    cam = data.get("camera", {}) or {}
+    beam = data.get("beam", {}) or {}
+    if not isinstance(cam, dict) or not isinstance(beam, dict):
+        raise ValueError("'camera' and 'beam' must be objects")
+    try:
+        img = np.asarray(reg["image_points_px"], dtype=np.float64)
+        pln = np.asarray(reg["plane_points_m"], dtype=np.float64)
+        matrix = None if cam.get("matrix") is None else np.asarray(cam["matrix"], float)
+        dist = None if cam.get("distortion") is None else np.asarray(cam["distortion"], float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"a point list or camera array is not numeric ({exc})") from None
+    if len(img) < 4:
+        raise ValueError(f"registration.image_points_px needs 4 or more points, got {len(img)}")
+    for key in beam:
+        if key not in ("length_m", "width_m"):
+            raise ValueError(f"unknown key beam.{key}")
+    return Calibration(
+        image_points_px=img,
+        plane_points_m=pln,
+        camera_matrix=matrix,
+        distortion=dist,
+        beam_length_m=float(beam.get("length_m", DEFAULT_BEAM_LENGTH_M)),
+        beam_width_m=float(beam.get("width_m", DEFAULT_BEAM_WIDTH_M)),
+    )
+
+
+def load_calibration(path: str | Path) -> Calibration:
+    """Read CAL.json; raises ``ValueError`` with the reason (not naming the file)."""
+    try:
+        text = Path(path).read_text("utf-8")
+    except FileNotFoundError:
+        raise ValueError("no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot be read ({exc})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"not valid JSON ({exc})") from None
+    return calibration_from_dict(data)

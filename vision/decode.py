@@ -1,0 +1,25 @@
+"""Image decoding (JPEG, PNG, ...) to uint8 gray [row, col]."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+
+def decode(data: bytes) -> NDArray[np.uint8]:
+    """Decode compressed image bytes to a uint8 gray [row, col] array.
+
+    Raises ``ValueError`` when the bytes are not a readable image.
+    """
+    if not isinstance(data, bytes | bytearray | memoryview):
+        raise TypeError(f"data must be bytes, got {type(data).__name__}")
+    buf = np.frombuffer(bytes(data), dtype=np.uint8)
+    if buf.size == 0:
+        raise ValueError("empty image data")
+    img = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise ValueError("not a readable image (JPEG/PNG/...)")
+    if img.dtype != np.uint8:
+        img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
+    return np.ascontiguousarray(img)

@@ -1,0 +1,181 @@
+"""Plane-to-plane projective collineations (homographies).
+
+``collineation_4pt`` is the paper's construction (seed 000, Eqs. 42-46): four point
+pairs, homogeneous coordinates with the scale coordinate first, ``t11 = 1`` and the
+four scale factors ``rho_i`` solved together with the eight other elements of [T].
+``dlt_homography`` is the normalized least-squares DLT for four or more pairs.
+Both return a 3x3 matrix ``H`` acting on ``(x, y, 1)`` column vectors:
+``dst ~ H @ src``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from vision.camera import as_points
+
+#: Below this relative triangle area three points count as collinear.
+COLLINEAR_TOLERANCE = 1e-3
+#: Above this condition number a homography is refused as badly conditioned.
+MAX_CONDITION = 1e7
+
+
+class DegeneratePointsError(ValueError):
+    """The point sets cannot determine a collineation (the message says why)."""
+
+
+@dataclass(frozen=True)
+class HomographyFit:
+    """A fitted homography and how well the points determined it.
+
+    ``condition`` is the ratio of the largest to the smallest significant singular
+    value of the (normalized) design matrix: large means ill-determined.
+    ``rms_residual`` is the RMS transfer error of the fit in destination units
+    (zero for an exact 4-point collineation).
+    """
+
+    matrix: NDArray[np.float64]
+    condition: float
+    rms_residual: float
+
+
+def check_general_position(points: NDArray[np.float64], name: str) -> None:
+    """Refuse point sets with duplicate points or (for four points) three nearly
+    collinear points; for more points, refuse when all are nearly collinear."""
+    n = len(points)
+    if n < 4:
+        raise DegeneratePointsError(f"{name} needs at least 4 points, got {n}")
+    span = float(np.max(np.linalg.norm(points[:, None, :] - points[None, :, :], axis=-1)))
+    if span == 0.0:
+        raise DegeneratePointsError(f"{name}: all points coincide")
+    for i, j in combinations(range(n), 2):
+        if np.linalg.norm(points[i] - points[j]) < 1e-9 * span:
+            raise DegeneratePointsError(f"{name}: points {i} and {j} coincide")
+    if n == 4:
+        for i, j, k in combinations(range(4), 3):
+            a, b, c = points[i], points[j], points[k]
+            area = abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])) / 2
+            if area < COLLINEAR_TOLERANCE * span**2:
+                raise DegeneratePointsError(f"{name}: points {i}, {j}, {k} are nearly collinear")
+    else:
+        centred = points - points.mean(axis=0)
+        sv = np.linalg.svd(centred, compute_uv=False)
+        if sv[1] < COLLINEAR_TOLERANCE * sv[0]:
+            raise DegeneratePointsError(f"{name}: all points are nearly collinear")
+
+
+def _validated(src: ArrayLike, dst: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+    s = as_points(src, "src")
+    d = as_points(dst, "dst")
+    if s.shape != d.shape:
+        raise ValueError(f"src and dst must have the same shape, got {s.shape} and {d.shape}")
+    check_general_position(s, "src")
+    check_general_position(d, "dst")
+    return s, d
+
+
+def collineation_4pt(src: ArrayLike, dst: ArrayLike) -> HomographyFit:
+    """The exact collineation through four point pairs, solved as in Eq. 46.
+
+    Parameters
+    ----------
+    src, dst : (4, 2) points (x, y); no three collinear in either set.
+
+    Returns
+    -------
+    HomographyFit with ``matrix`` H (3, 3), ``dst ~ H (x, y, 1)``.
+    """
+    s, d = _validated(src, dst)
+    if len(s) != 4:
+        raise ValueError(f"collineation_4pt needs exactly 4 point pairs, got {len(s)}")
+    # Paper order: homogeneous scale first, w = (w0 : w1 : w2) = (1 : x : y).
+    w = np.column_stack([np.ones(4), s])
+    big_w = np.column_stack([np.ones(4), d])
+    # Unknowns: t12 t13 t21 t22 t23 t31 t32 t33 rho1..rho4 (t11 = 1).
+    a = np.zeros((12, 12))
+    b = np.zeros(12)
+    t_index = {(0, 1): 0, (0, 2): 1, (1, 0): 2, (1, 1): 3, (1, 2): 4, (2, 0): 5, (2, 1): 6}
+    t_index[(2, 2)] = 7
+    for i in range(4):
+        for r in range(3):
+            row = 3 * i + r
+            for c in range(3):
+                if (r, c) == (0, 0):
+                    b[row] -= w[i, 0]
+                else:
+                    a[row, t_index[(r, c)]] = w[i, c]
+            a[row, 8 + i] = -big_w[i, r]
+    if not np.isfinite(np.linalg.cond(a)) or np.linalg.matrix_rank(a) < 12:
+        raise DegeneratePointsError("the collineation equations (Eq. 46) are singular")
+    sol = np.linalg.solve(a, b)
+    t = np.empty((3, 3))
+    t[0, 0] = 1.0
+    for (r, c), k in t_index.items():
+        t[r, c] = sol[k]
+    # (x, y, 1) -> (1, x, y) permutation: H = P^-1 T P.
+    p = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    h = p.T @ t @ p
+    h = h / h[2, 2] if abs(h[2, 2]) > 1e-300 else h
+    return HomographyFit(h, _design(s, d)[1], _rms(h, s, d))
+
+
+def _normalizer(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    c = p.mean(axis=0)
+    scale = np.sqrt(2.0) / np.mean(np.linalg.norm(p - c, axis=1))
+    return np.array([[scale, 0, -scale * c[0]], [0, scale, -scale * c[1]], [0, 0, 1.0]])
+
+
+def dlt_homography(src: ArrayLike, dst: ArrayLike) -> HomographyFit:
+    """Normalized DLT (Hartley) homography through four or more point pairs.
+
+    Parameters
+    ----------
+    src, dst : (N, 2) points (x, y), N >= 4.
+    """
+    s, d = _validated(src, dst)
+    (ts, td, vt), cond = _design(s, d)
+    hn = vt[-1].reshape(3, 3)
+    h = np.linalg.inv(td) @ hn @ ts
+    h = h / h[2, 2] if abs(h[2, 2]) > 1e-300 else h / np.linalg.norm(h)
+    return HomographyFit(h, cond, _rms(h, s, d))
+
+
+def _design(
+    s: NDArray[np.float64], d: NDArray[np.float64]
+) -> tuple[tuple[NDArray[np.float64], ...], float]:
+    """Normalizing transforms, right singular vectors and condition of the DLT system."""
+    ts, td = _normalizer(s), _normalizer(d)
+    sn = apply_homography(ts, s)
+    dn = apply_homography(td, d)
+    n = len(s)
+    a = np.zeros((2 * n, 9))
+    x, y = sn[:, 0], sn[:, 1]
+    u, v = dn[:, 0], dn[:, 1]
+    a[0::2, 0:3] = np.column_stack([x, y, np.ones(n)])
+    a[0::2, 6:9] = -u[:, None] * np.column_stack([x, y, np.ones(n)])
+    a[1::2, 3:6] = np.column_stack([x, y, np.ones(n)])
+    a[1::2, 6:9] = -v[:, None] * np.column_stack([x, y, np.ones(n)])
+    _, sv, vt = np.linalg.svd(a)
+    cond = float(sv[0] / sv[7]) if sv[7] > 0 else float("inf")
+    return (ts, td, vt), cond
+
+
+def apply_homography(matrix: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
+    """Map ``(N, 2)`` points through a 3x3 homography; points sent to infinity give NaN."""
+    h = np.asarray(matrix, dtype=np.float64)
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    q = p @ h[:, :2].T + h[:, 2]
+    w = q[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = q[:, :2] / w[:, None]
+    out[np.abs(w) < 1e-300] = np.nan
+    return out
+
+
+def _rms(h: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64]) -> float:
+    r = apply_homography(h, s) - d
+    return float(np.sqrt(np.mean(np.sum(r * r, axis=1))))

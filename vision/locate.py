@@ -1,0 +1,208 @@
+"""Coarse location of the beam and the hub in a frame, in beam-plane coordinates.
+
+Nothing here depends on the renderer: the beam is a bright strip of the calibrated width
+somewhere around the pivot (the plane origin); the hub is where the strip, followed back
+toward the pivot, becomes wider; the clamp is where it does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from vision.sampling import bilinear
+
+ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+
+class FrameFailure(Exception):
+    """A frame that gives no measurement; the message is the reason."""
+
+
+@dataclass
+class Strip:
+    centre: float  # offset along the profile, m
+    width: float  # m
+    contrast: float  # DN
+
+
+@dataclass
+class Rough:
+    """Rough geometry (plane, m): beam polyline from clamp to tip, hub axis and extent."""
+
+    beam: NDArray[np.float64]  # (M, 2) from near the clamp to the tip
+    clamp: NDArray[np.float64]  # (2,)
+    hub_back: NDArray[np.float64]  # (2,) far end of the hub
+    hub_width: float
+    tip: NDArray[np.float64]
+
+
+def find_strip(
+    values: NDArray[np.float64], offsets: NDArray[np.float64], expect: float
+) -> Strip | None:
+    """The bright run (half-maximum crossings) nearest offset ``expect`` in a profile."""
+    ok = np.isfinite(values)
+    if ok.sum() < 0.7 * len(values):
+        return None
+    v = np.where(ok, values, np.nanmedian(values))
+    lo = float(np.percentile(v, 20))
+    hi = float(np.percentile(v, 98))
+    if hi - lo < 12.0:
+        return None
+    thr = 0.5 * (lo + hi)
+    above = v > thr
+    if not above.any():
+        return None
+    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
+    starts = [0] if above[0] else []
+    starts += [int(e) + 1 for e in edges if not above[e]]
+    best: Strip | None = None
+    for s0 in starts:
+        s1 = s0
+        while s1 + 1 < len(v) and above[s1 + 1]:
+            s1 += 1
+        if s0 == 0 or s1 == len(v) - 1:
+            continue
+        f0 = (thr - v[s0 - 1]) / (v[s0] - v[s0 - 1])
+        f1 = (v[s1] - thr) / (v[s1] - v[s1 + 1])
+        step = offsets[1] - offsets[0]
+        a = offsets[s0 - 1] + f0 * step
+        b = offsets[s1] + f1 * step
+        c = 0.5 * (a + b)
+        if best is None or abs(c - expect) < abs(best.centre - expect):
+            best = Strip(c, b - a, float(np.max(v[s0 : s1 + 1]) - lo))
+    return best
+
+
+def profile(
+    image: NDArray[np.uint8],
+    to_px: ToPx,
+    centre: NDArray[np.float64],
+    normal: NDArray[np.float64],
+    half_m: float,
+    step_m: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    offs = np.arange(-half_m, half_m + step_m / 2, step_m)
+    pts = centre[None, :] + offs[:, None] * normal[None, :]
+    return bilinear(image, to_px(pts)), offs
+
+
+def _circle_candidates(
+    image: NDArray[np.uint8], to_px: ToPx, radius: float, width: float, step: float
+) -> list[tuple[float, float]]:
+    """(angle, contrast) of strips of about ``width`` crossing a circle about the pivot."""
+    n = int(np.ceil(2 * np.pi * radius / step))
+    phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    pts = radius * np.column_stack([np.cos(phi), np.sin(phi)])
+    v = bilinear(image, to_px(pts))
+    ok = np.isfinite(v)
+    if ok.sum() < 10:
+        return []
+    vv = np.where(ok, v, np.nanmedian(v))
+    # Top-hat: brightness above the local floor over 3 widths.
+    k = max(3, round(3 * width / step))
+    from scipy.ndimage import grey_opening, uniform_filter1d
+
+    sm = uniform_filter1d(vv, max(1, round(0.2 * width / step)), mode="wrap")
+    floor = grey_opening(sm, size=k, mode="wrap")
+    top = sm - floor
+    noise = float(np.median(np.abs(np.diff(vv)))) + 1.0
+    out = []
+    thr = max(10.0, 5 * noise)
+    peaks = np.flatnonzero((top > thr) & (top >= np.roll(top, 1)) & (top > np.roll(top, -1)) & ok)
+    for p in peaks:
+        half = top[p] / 2
+        i0 = p
+        while top[i0 % n] > half and p - i0 < n // 4:
+            i0 -= 1
+        i1 = p
+        while top[i1 % n] > half and i1 - p < n // 4:
+            i1 += 1
+        wid = (i1 - i0 - 1) * step
+        if 0.55 * width <= wid <= 1.7 * width:
+            out.append((float(phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n)), float(top[p])))
+    return out
+
+
+def locate(
+    image: NDArray[np.uint8], to_px: ToPx, beam_length: float, beam_width: float, px_m: float
+) -> Rough:
+    """Find the beam around the pivot and follow it to the tip and back over the hub."""
+    r1, r2 = 0.25 * beam_length, 0.45 * beam_length
+    step = max(0.4 * px_m, beam_width / 40)
+    c1 = _circle_candidates(image, to_px, r1, beam_width, step)
+    c2 = _circle_candidates(image, to_px, r2, beam_width, step)
+    best = None
+    for a1, k1 in c1:
+        for a2, k2 in c2:
+            d = np.angle(np.exp(1j * (a2 - a1)))
+            if abs(d) < 0.12 and (best is None or k1 + k2 > best[2]):
+                best = (a1, a2, k1 + k2)
+    if best is None:
+        raise FrameFailure("no beam found (no bright strip of the beam's width about the pivot)")
+    a1, a2, _ = best
+    p1 = r1 * np.array([np.cos(a1), np.sin(a1)])
+    p2 = r2 * np.array([np.cos(a2), np.sin(a2)])
+    d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
+    outward = _follow(image, to_px, p2, d0, beam_width, 3.0 * beam_width, beam_length * 0.7, px_m)
+    inward = _follow(image, to_px, p1, -d0, beam_width, 5.0 * beam_width, beam_length, px_m)
+    pts_in, widths_in = inward
+    wide = np.flatnonzero(widths_in > 1.35 * beam_width)
+    if wide.size < 2:
+        raise FrameFailure("no hub found (the strip does not widen toward the pivot)")
+    k0 = int(wide[0])
+    clamp = pts_in[k0 - 1] if k0 > 0 else pts_in[0]
+    clamp = 0.5 * (clamp + pts_in[k0])
+    hub_pts = pts_in[k0:]
+    hub_w = widths_in[k0:]
+    # The hub continues while the width stays near its median.
+    med = float(np.median(hub_w))
+    keep = np.abs(hub_w - med) < 0.25 * med
+    last = int(np.argmin(keep)) if not keep.all() else len(keep)
+    if last < 2:
+        raise FrameFailure("no hub found (too short)")
+    hub_back = hub_pts[last - 1]
+    beam_in = pts_in[:k0][::-1]
+    beam = np.vstack([beam_in, p1[None, :], outward[0]])
+    return Rough(beam, clamp, hub_back, med, outward[0][-1] if len(outward[0]) else p2)
+
+
+def _follow(
+    image: NDArray[np.uint8],
+    to_px: ToPx,
+    start: NDArray[np.float64],
+    direction: NDArray[np.float64],
+    width: float,
+    half_m: float,
+    max_len: float,
+    px_m: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Follow a bright strip from ``start`` along ``direction`` until it ends."""
+    step = max(2.0 * width / 3.0, 4 * px_m)
+    pts, widths = [], []
+    p, d = start.copy(), direction.copy()
+    travelled = 0.0
+    prev_w = width
+    while travelled < max_len:
+        q = p + step * d
+        n = np.array([-d[1], d[0]])
+        v, offs = profile(image, to_px, q, n, max(half_m, 2.5 * prev_w), 0.5 * px_m)
+        s = find_strip(v, offs, 0.0)
+        if s is None or s.width < 0.5 * width or abs(s.centre) > 0.7 * max(prev_w, width):
+            break
+        q = q + s.centre * n
+        pts.append(q)
+        widths.append(s.width)
+        newd = q - p
+        newd /= np.linalg.norm(newd)
+        d = 0.5 * (d + newd)
+        d /= np.linalg.norm(d)
+        p = q
+        prev_w = s.width
+        travelled += step
+    if not pts:
+        return np.zeros((0, 2)), np.zeros(0)
+    return np.array(pts), np.array(widths)

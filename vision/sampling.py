@@ -1,0 +1,48 @@
+"""Image sampling and 1-D sub-pixel edge location shared by the measurement methods."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+def bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Bilinear samples of a [row, col] image at points (N, 2) (x, y); NaN off the image."""
+    h, w = image.shape
+    x = xy[..., 0]
+    y = xy[..., 1]
+    ok = (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1) & np.isfinite(x) & np.isfinite(y)
+    xc = np.where(ok, x, 0.0)
+    yc = np.where(ok, y, 0.0)
+    x0 = np.minimum(np.floor(xc).astype(np.intp), w - 2)
+    y0 = np.minimum(np.floor(yc).astype(np.intp), h - 2)
+    fx = xc - x0
+    fy = yc - y0
+    i00 = image[y0, x0].astype(np.float64)
+    i01 = image[y0, x0 + 1].astype(np.float64)
+    i10 = image[y0 + 1, x0].astype(np.float64)
+    i11 = image[y0 + 1, x0 + 1].astype(np.float64)
+    v = (i00 * (1 - fx) + i01 * fx) * (1 - fy) + (i10 * (1 - fx) + i11 * fx) * fy
+    return np.where(ok, v, np.nan)
+
+
+def edge_moment(
+    diff: NDArray[np.float64], peak: NDArray[np.intp], half: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """First moment of positive differences around ``peak`` in each row of ``diff``.
+
+    ``diff[i, k]`` is the step between samples k and k+1 (located at k + 0.5). Returns the
+    sub-sample edge position, the summed step (contrast) and the RMS spread (samples)."""
+    _n, m = diff.shape
+    offs = np.arange(-half, half + 1)
+    idx = peak[:, None] + offs[None, :]
+    valid = (idx >= 0) & (idx < m)
+    idx = np.clip(idx, 0, m - 1)
+    d = np.take_along_axis(diff, idx, axis=1)
+    d = np.where(valid & (d > 0), d, 0.0)
+    total = d.sum(axis=1)
+    pos = idx + 0.5
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centre = (d * pos).sum(axis=1) / total
+        spread = np.sqrt(np.maximum((d * (pos - centre[:, None]) ** 2).sum(axis=1) / total, 0))
+    return centre, total, spread
