@@ -96,10 +96,10 @@ def design_antialias(config: DaqConfig, acquisition_rate_hz: float) -> AntiAlias
             f"acquisition_rate_hz ({fs!r}) must be a whole multiple of output_rate_hz "
             f"({config.output_rate_hz!r})"
         )
-    if config.stopband_hz > 0.5 * fs:
+    if config.stopband_hz >= 0.5 * fs:
         raise ValueError(
-            f"acquisition_rate_hz ({fs!r}) must be at least twice stopband_hz "
-            f"({config.stopband_hz!r})"
+            f"acquisition_rate_hz ({fs!r}) must be more than twice stopband_hz "
+            f"({config.stopband_hz!r}): the filter has to act before the rate is reduced"
         )
     order, wn = signal.buttord(
         config.passband_hz,

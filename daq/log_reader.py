@@ -121,7 +121,10 @@ def _messages(
 ) -> Iterator[tuple[Schema | None, Channel, Message]]:
     try:
         yield from reader.iter_messages(
-            topics=list(topics), start_time=start_ns, end_time=end_ns, log_time_order=True
+            topics=list(topics),
+            starting_at=start_ns,
+            ending_before=end_ns,
+            log_time_order=True,
         )
     except READ_ERRORS as exc:
         raise LogError(str(path), f"corrupt log data ({type(exc).__name__}: {exc})") from None
@@ -173,7 +176,12 @@ def read_run(
             raise LogError(str(p), f"corrupt metadata ({exc})") from None
         assert summary is not None
         if "rig" not in meta or "run" not in meta:
-            raise LogError(str(p), "log lacks the 'rig' or 'run' metadata record")
+            raise LogError(
+                str(p),
+                "log lacks the 'rig' or 'run' metadata record (not written by beambench "
+                "capture, or cut off before its first flush)",
+                suggest_recover=False,
+            )
         image_ids = [c.id for c in summary.channels.values() if c.topic == TOPIC_IMAGE]
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
         frame_count = sum(counts.get(i, 0) for i in image_ids)
