@@ -129,3 +129,51 @@ def test_tip_positions_against_closed_forms() -> None:
         tip_positions_m(a, np.zeros(4), np.zeros(4), -1.0)
     with pytest.raises(ValueError, match="lateral_m"):
         tip_positions_m(a, np.zeros(3), np.zeros(4), r)
+
+
+@pytest.mark.parametrize("n_frames", [0, 6])
+def test_a_run_without_usable_frames_still_gives_results_recording_and_report(
+    tmp_path: Path, n_frames: int
+) -> None:
+    from pipelines.results import read_results, write_results
+    from pipelines.viewer import open_viewer, rrd_entities
+
+    t = np.arange(0, 5.0, 1 / FS_HZ)
+    n = t.size
+    ds = make_results(
+        time_s=t,
+        rocker_angle_rad=np.sin(t),
+        strain=np.zeros((n, 4)),
+        gauge_m=[0.005, 0.204, 0.403, 0.603],
+        frame_time_s=0.1 * np.arange(n_frames),
+        hub_angle_image_rad=np.zeros(n_frames),
+        tip_lateral_m=np.zeros(n_frames),
+        tip_longitudinal_m=np.zeros(n_frames),
+        frame_ok=np.zeros(n_frames, dtype=bool),  # every frame failed
+        tip_lateral_strain_m=np.full(n, np.nan),
+        sim_tip_lateral_m=np.zeros(n),
+        sim_strain=np.zeros((n, 4)),
+        attrs={
+            "source_log": "run.mcap",
+            "rig_json": Rig().to_json(),
+            "software_version": "test",
+            "sim_model": "rigid",
+            "sim_settings": {},
+            "camera_to_daq_offset_s": float("nan"),  # alignment impossible without frames
+        },
+    )
+    back = read_results(write_results(ds, tmp_path / "r.nc"))
+    assert back.sizes["frame_time"] == n_frames
+    assert back.attrs["frames_failed"] == n_frames
+    errors = summarise_errors(back)
+    assert errors["n_frames_compared"] == 0
+    assert np.isnan(errors["tip_lateral_image_vs_sim_rms_m"])
+    assert errors["strain_vs_sim_rms"] == [0.0] * 4
+    with open_viewer("beambench-test", rrd_path=tmp_path / "r.rrd") as viewer:
+        viewer.log_results(back)
+    entities = rrd_entities(tmp_path / "r.rrd")
+    assert entities["/daq/rocker_angle"].rows == n
+    assert entities["/tip_lateral/image"].rows == 0
+    md = write_report(back, tmp_path / "report", title="no frames").read_text("utf-8")
+    assert "| tip lateral, image - sim, RMS | n/a | mm |" in md
+    assert "camera-to-DAQ time offset: n/a ms" in md
