@@ -35,7 +35,7 @@ class CameraConfig:
     frame_rate_hz: float = 15.0
     encoding: str = "jpeg"
     jpeg_quality: int = 90
-    exposure_s: float = 0.002
+    exposure_s: float = 0.0005
     latency_s: float = 0.030
     focal_length_px: float = 2100.0
     distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
