@@ -96,9 +96,9 @@ def test_bad_camera_sources_raise_device_errors(tmp_path: Path) -> None:
         open_camera(str(tmp_path / "nothing"), width_px=1, height_px=1, frame_rate_hz=1)
     empty = tmp_path / "empty"
     empty.mkdir()
-    with pytest.raises(DeviceError, match="no .jpg"):
+    with pytest.raises(DeviceError, match=r"no \.jpg"):
         StillFolderCamera(empty).start()
     broken = tmp_path / "broken.avi"
     broken.write_bytes(b"not a video")
-    with pytest.raises(DeviceError, match="broken.avi"):
+    with pytest.raises(DeviceError, match=r"broken\.avi"):
         VideoFileCamera(broken).start()
