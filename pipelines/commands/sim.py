@@ -1,23 +1,252 @@
-"""beambench sim: simulate one scene."""
+"""beambench sim: simulate one scene and write it as NetCDF (design.md, "A simulation on
+its own")."""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import sys
+from typing import Any
 
-from pipelines.commands._common import add_rig_argument, not_available, rig_from_args
+from pipelines.commands._common import add_rig_argument, rig_from_args
+from pipelines.errors import BeambenchError
+from pipelines.rig import Rig
+from pipelines.sim_output import check_output_path, modes_dataset, sim_dataset, write_dataset
+from sim import scenes
+from sim.ltv import SolverError
 
 HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-body, modes, linkage)"
 
 SCENES = ("reciprocating", "static", "free-decay", "spin-up", "falling-body", "modes", "linkage")
 
+DEFAULT_MASS_KG = {"static": 0.149, "free-decay": 0.1}
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", choices=SCENES)
     add_rig_argument(p)
-    p.add_argument("--model", choices=("auto", "rigid", "modal", "fe"), default="auto")
+    p.add_argument("--model", choices=scenes.MODELS, default="auto")
     p.add_argument("--out", metavar="FILE.nc", default=None)
+    p.add_argument(
+        "--drive",
+        choices=("paper", "fourbar"),
+        default="paper",
+        help="reciprocating: the paper's sinusoid (Eq. 53) or the true four-bar output",
+    )
+    p.add_argument(
+        "--damping",
+        nargs=2,
+        type=_finite,
+        metavar=("A0", "A1"),
+        default=None,
+        help="proportional damping a0 (1/s), a1 (s); default: the rig's",
+    )
+    p.add_argument(
+        "--duration",
+        type=_finite,
+        metavar="S",
+        default=None,
+        help="simulated time, s (reciprocating 10, free-decay 10, spin-up 30, falling-body 2)",
+    )
+    p.add_argument(
+        "--mass",
+        type=_finite,
+        metavar="KG",
+        default=None,
+        help="static / free-decay tip mass, kg (default 0.149 / 0.1)",
+    )
+    p.add_argument(
+        "--omega",
+        type=_finite,
+        metavar="RAD_S",
+        default=4.0,
+        help="spin-up: final hub speed, rad/s (the benchmark uses 4 and 10)",
+    )
+    p.add_argument(
+        "--no-stiffening",
+        action="store_true",
+        help="spin-up, modal: leave out the centrifugal stiffening (diverges)",
+    )
+    p.add_argument(
+        "--n-modes", type=int, default=None, metavar="N", help="modal model: number of modes"
+    )
+    p.add_argument("--rtol", type=_finite, default=1e-6, help="tolerance of the dynamic models")
+    p.add_argument(
+        "--output-rate",
+        type=_finite,
+        metavar="HZ",
+        default=None,
+        help="output samples per second (400 for the bench scenes, 100 for spin-up)",
+    )
+    p.add_argument(
+        "--target-log-decrement",
+        type=_finite,
+        default=None,
+        help="free-decay: identify a0 = a1 reproducing this measured decrement",
+    )
+    p.add_argument("--json", action="store_true", help="linkage: print JSON")
+
+
+def _positive(name: str, value: float | None) -> None:
+    if value is not None and value <= 0.0:
+        raise BeambenchError(f"{name} must be positive, got {value!r}")
+
+
+def _check(args: argparse.Namespace) -> None:
+    if args.mass is not None and args.mass < 0.0:
+        raise BeambenchError(f"--mass must be non-negative, got {args.mass!r} kg")
+    _positive("--duration", args.duration)
+    _positive("--rtol", args.rtol)
+    _positive("--output-rate", args.output_rate)
+    _positive("--target-log-decrement", args.target_log_decrement)
+    if args.damping is not None and min(args.damping) < 0.0:
+        raise BeambenchError(f"--damping values must be non-negative, got {args.damping!r}")
+    if args.n_modes is not None and not 1 <= args.n_modes <= 40:
+        raise BeambenchError(f"--n-modes must be between 1 and 40, got {args.n_modes!r}")
+
+
+def _kw(args: argparse.Namespace, **defaults: Any) -> dict[str, Any]:
+    out = dict(defaults)
+    if args.duration is not None:
+        out["duration_s"] = args.duration
+    if args.n_modes is not None:
+        out["n_modes"] = args.n_modes
+    if args.output_rate is not None:
+        out["output_rate_hz"] = args.output_rate
+    return out
+
+
+def _run_scene(args: argparse.Namespace, rig: Rig) -> scenes.SceneRun:
+    gauges = tuple(rig.gauges.positions_m)
+    a0a1 = args.damping
+    if args.scene == "reciprocating":
+        a0, a1 = a0a1 if a0a1 is not None else (rig.damping.a0_per_s, rig.damping.a1_s)
+        return scenes.reciprocating(
+            rig.linkage,
+            rig.beam,
+            rig.drive,
+            drive=args.drive,
+            a0_per_s=a0,
+            a1_s=a1,
+            model=args.model,
+            gauge_positions_m=gauges,
+            rtol=args.rtol,
+            **_kw(args),
+        )
+    if args.scene == "static":
+        mass = DEFAULT_MASS_KG["static"] if args.mass is None else args.mass
+        kw = {"n_modes": args.n_modes} if args.n_modes is not None else {}
+        return scenes.static(
+            rig.beam, mass_kg=mass, model=args.model, gauge_positions_m=gauges, **kw
+        )
+    if args.scene == "free-decay":
+        mass = DEFAULT_MASS_KG["free-decay"] if args.mass is None else args.mass
+        if mass <= 0.0:
+            raise BeambenchError("--mass must be positive for the free-decay scene")
+        a0, a1 = a0a1 if a0a1 is not None else (None, None)
+        model = "modal" if args.model == "auto" else args.model
+        return scenes.free_decay(
+            rig.beam,
+            rig.damping,
+            mass_kg=mass,
+            a0_per_s=a0,
+            a1_s=a1,
+            model=model,
+            gauge_positions_m=gauges,
+            target_log_decrement=args.target_log_decrement,
+            **_kw(args),
+        )
+    if args.scene == "spin-up":
+        _positive("--omega", args.omega)
+        return scenes.spin_up(
+            omega_rad_s=args.omega,
+            model=args.model,
+            stiffening=not args.no_stiffening,
+            rtol=args.rtol,
+            **_kw(args),
+        )
+    if args.scene == "falling-body":
+        return scenes.falling_body(rig.beam, gauge_positions_m=gauges, **_kw(args))
+    raise AssertionError(args.scene)  # pragma: no cover
+
+
+def _print_linkage(info: dict[str, Any], as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(info, sort_keys=True))
+        return
+    deg = math.degrees
+    print(f"grashof: {info['grashof']}")
+    for end in ("min", "max"):
+        print(
+            f"rocker {end} {deg(info[f'rocker_{end}_rad']):.3f} deg "
+            f"at crank {deg(info[f'crank_at_{end}_rad']):.3f} deg "
+            f"(paper: {deg(info[f'paper_rocker_{end}_rad']):.3f} deg "
+            f"at {deg(info[f'paper_crank_at_{end}_rad']):.0f})"
+        )
+    print(f"range {deg(info['rocker_range_rad']):.3f} deg (paper: 87.876 deg)")
+    print(
+        f"transmission angle {deg(info['transmission_angle_min_rad']):.3f} .. "
+        f"{deg(info['transmission_angle_max_rad']):.3f} deg"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    rig_from_args(args)
-    return not_available("sim", 3)
+    rig = rig_from_args(args)
+    _check(args)
+    if args.out is not None:
+        try:
+            check_output_path(args.out)
+        except ValueError as exc:
+            raise BeambenchError(f"--out {exc}") from None
+    if args.scene == "linkage":
+        _print_linkage(scenes.linkage(rig.linkage), args.json)
+        return 0
+    try:
+        if args.scene == "modes":
+            info = scenes.modes(rig.beam, **({"n_modes": args.n_modes} if args.n_modes else {}))
+            ds = modes_dataset(info, rig_json=rig.to_json())
+            summary = (
+                "modes: " + ", ".join(f"{f:.3f}" for f in ds["natural_frequency"].values) + " Hz"
+            )
+        else:
+            scene_run = _run_scene(args, rig)
+            ds = sim_dataset(
+                scene_run.result, scene=args.scene, rig_json=rig.to_json(), extras=scene_run.extras
+            )
+            res = scene_run.result
+            peak = float(abs(res.tip_lateral_m).max()) if res.tip_lateral_m.size else 0.0
+            summary = (
+                f"{args.scene}: model {res.model}, wall time {res.wall_time_s:.4f} s, "
+                f"max |tip_lateral| {peak * 1e3:.4f} mm"
+            )
+            if args.scene == "free-decay":
+                ex = scene_run.extras
+                summary += (
+                    f", log decrement {ex['log_decrement']:.5f}, zeta {ex['damping_ratio']:.5f}, "
+                    f"identified a0 = a1 = {ex['identified_a0_per_s']:.6g}"
+                )
+    except scenes.ModelNotAvailable as exc:
+        raise BeambenchError(f"--model {args.model}: {exc}") from None
+    except SolverError as exc:
+        raise BeambenchError(f"{args.scene}: the solver failed: {exc}") from None
+    except ValueError as exc:
+        raise BeambenchError(f"{args.scene}: {exc}") from None
+    if args.out is not None:
+        try:
+            write_dataset(ds, args.out)
+        except (OSError, ValueError) as exc:
+            raise BeambenchError(f"--out {args.out}: cannot write: {exc}") from None
+    if args.out is None or sys.stdout.isatty():
+        print(summary + (f" -> {args.out}" if args.out else ""))
+    return 0
