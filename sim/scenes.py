@@ -259,8 +259,8 @@ def free_decay(
             a1_s=a1_,
             gauge_positions_m=gauges,
             initial_q=q0,
-            rtol=1e-7,
-            atol=1e-14,
+            rtol=1e-5,
+            atol=1e-12,
         )
 
     res = run(a0, a1)
