@@ -56,6 +56,7 @@ COLOUR_RIGID = (148, 103, 189)
 COLOUR_CENTRELINE = (23, 190, 207)
 COLOUR_TIP = (255, 221, 0)
 
+_URL_SCHEMES = ("rerun://", "rerun+http://", "rerun+https://")
 _MEDIA_TYPES = {"jpeg": "image/jpeg", "jpg": "image/jpeg", "png": "image/png"}
 
 # Event levels: foxglove.Log numbers (1 debug .. 5 fatal) or names.
@@ -559,6 +560,12 @@ def open_viewer(
     if sum(chosen) != 1:
         raise ValueError(
             f"give exactly one destination: rrd_path, spawn=True or connect_url (got {sum(chosen)})"
+        )
+    if connect_url is not None and not str(connect_url).startswith(_URL_SCHEMES):
+        # Checked here, before a recording exists: rerun would refuse it too, but only
+        # after buffering data that it then complains about dropping.
+        raise ValueError(
+            f"connect_url must start with one of {', '.join(_URL_SCHEMES)}, got {connect_url!r}"
         )
     rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
     blueprint = build_blueprint()

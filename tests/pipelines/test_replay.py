@@ -130,6 +130,7 @@ def test_bad_input_is_one_error_line_and_keeps_the_old_recording(
         ([str(run_log), "--speed", "-1", "--rrd", str(out)], "--speed"),
         ([str(run_log), "--rrd", str(tmp_path / "run.mcap")], ".rrd"),
         ([str(run_log), "--rrd", str(tmp_path / "no" / "x.rrd")], "does not exist"),
+        ([str(run_log), "--connect", "localhost:9876"], "rerun+http://"),
     ]
     for argv, needle in cases:
         assert main(["replay", *argv]) == 2, argv

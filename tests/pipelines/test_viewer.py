@@ -229,6 +229,8 @@ def test_bad_arguments_name_the_parameter(tmp_path: Path) -> None:
         open_viewer("x", rrd_path=tmp_path / "a.rrd", connect_url="rerun+http://h:1/proxy")
     with pytest.raises(ValueError, match="does not exist"):
         open_viewer("x", rrd_path=tmp_path / "nope" / "a.rrd")
+    with pytest.raises(ValueError, match="connect_url"):
+        open_viewer("x", connect_url="localhost:9876")
     with open_viewer("x", rrd_path=tmp_path / "a.rrd") as viewer:
         with pytest.raises(ValueError, match="encoding"):
             viewer.log_frame(0.0, _png(), "bmp", None)
