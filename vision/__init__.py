@@ -1,3 +1,19 @@
 """beambench vision: camera model, registration/rectification, centre-line
 extraction, hub angle and deflection, and the scene renderer. numpy/scipy/OpenCV
 only; imports neither ``sim`` nor ``daq``."""
+
+from vision.calibration import Calibration, load_calibration, plane_to_image_px
+from vision.decode import decode
+from vision.measure import FrameMeasurement, Measurer
+from vision.registration import calibration_from_registration, detect_registration_corners
+
+__all__ = [
+    "Calibration",
+    "FrameMeasurement",
+    "Measurer",
+    "calibration_from_registration",
+    "decode",
+    "detect_registration_corners",
+    "load_calibration",
+    "plane_to_image_px",
+]

@@ -76,7 +76,7 @@ class CameraPoseConfig:
     """
 
     distance_m: float = 2.0
-    target_m: tuple[float, ...] = (0.15, -0.55)
+    target_m: tuple[float, ...] = (0.15, -0.37)
     tilt_rad: float = math.radians(15.0)
     tilt_azimuth_rad: float = 0.0
     roll_rad: float = 0.0
@@ -98,9 +98,9 @@ class RegistrationConfig:
     direction of the first groove from +X.
     """
 
-    square_side_m: float = 0.040
-    plate_side_m: float = 0.160
-    center_m: tuple[float, ...] = (0.40, -0.05)
+    square_side_m: float = 0.100
+    plate_side_m: float = 0.300
+    center_m: tuple[float, ...] = (0.50, 0.05)
     angle_rad: float = 0.0
 
     def __post_init__(self) -> None:

@@ -279,9 +279,12 @@ def _pixel_maps(spec: SceneSpec) -> tuple[NDArray[Any], ...]:
 
 
 def _offsets(n: int) -> NDArray[np.float64]:
-    g = (np.arange(n) + 0.5) / n - 0.5
-    du, dv = np.meshgrid(g, g)
-    return np.column_stack([du.ravel(), dv.ravel()])
+    """n*n sample offsets (px) in a pixel: an n-rooks pattern (every sample on its own row
+    and column), so edges along the pixel grid see n*n coverage levels, not n."""
+    m = n * n
+    k = np.arange(m)
+    step = next(s for s in range(max(2, int(np.sqrt(m))), m) if np.gcd(s, m) == 1)
+    return np.column_stack([(k + 0.5) / m - 0.5, ((k * step) % m + 0.5) / m - 0.5])
 
 
 def _sub_plane_deltas(

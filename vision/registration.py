@@ -1,0 +1,252 @@
+"""Automatic detection of the registration object (paper §4.3): a light plate in the
+beam plane with two orthogonal dark grooves crossing in a square of known side.
+
+The grooves cut the plate into four light quadrants; their inner corners are the
+crossing square's corners. Each groove edge is refined to sub-pixel accuracy along its
+whole visible length and fitted as a straight line in undistorted pixels; the corners are
+the intersections of those lines.
+
+Corner order: the symmetric object does not say which corner is which. The plate is
+taken to be seen from its front (+Z) side, and the registration object's first-groove
+direction (``RegistrationConfig.angle_rad`` from +X) to appear in the image within 45
+degrees of ``x_axis_image_rad - angle_rad`` (image angle, from +x toward +y down); the
+default 0 means the plane's +X axis points roughly to the image's right.
+"""
+
+from __future__ import annotations
+
+import math
+from itertools import combinations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from vision.calibration import Calibration
+from vision.camera import check_intrinsics, distort_points_px, undistort_points_px
+from vision.config import RegistrationConfig
+from vision.sampling import bilinear, edge_moment
+
+
+def registration_plane_points_m(registration: RegistrationConfig) -> NDArray[np.float64]:
+    """(4, 2) corners of the crossing square in the beam plane, CCW, starting at the corner
+    at (-s/2, -s/2) of the object's own frame (first groove along its x axis)."""
+    h = registration.square_side_m / 2.0
+    local = np.array([[-h, -h], [h, -h], [h, h], [-h, h]])
+    c, s = math.cos(registration.angle_rad), math.sin(registration.angle_rad)
+    return local @ np.array([[c, s], [-s, c]]) + np.asarray(registration.center_m)
+
+
+def _quads(image: NDArray[np.uint8]) -> list[NDArray[np.float64]]:
+    blur = cv2.GaussianBlur(image, (5, 5), 1.0)
+    _, binary = cv2.threshold(blur, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    contours, _ = cv2.findContours(binary, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+    out = []
+    for c in contours:
+        area = cv2.contourArea(c)
+        if area < 150:
+            continue
+        approx = cv2.approxPolyDP(c, 0.04 * cv2.arcLength(c, True), True)
+        if len(approx) != 4 or not cv2.isContourConvex(approx):
+            continue
+        q = approx.reshape(4, 2).astype(np.float64)
+        sides = np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1)
+        if sides.min() < 0.3 * sides.max():
+            continue
+        out.append(q)
+    return out
+
+
+def _group(quads: list[NDArray[np.float64]], ratio: float) -> list[NDArray[np.float64]] | None:
+    """Four quads of similar size whose nearest corners close a small square."""
+    best, best_score = None, math.inf
+    areas = [cv2.contourArea(q.astype(np.float32)) for q in quads]
+    for idx in combinations(range(len(quads)), 4):
+        a = np.array([areas[i] for i in idx])
+        if a.max() > 2.5 * a.min():
+            continue
+        centre = np.mean([quads[i].mean(axis=0) for i in idx], axis=0)
+        inner = np.array(
+            [quads[i][np.argmin(np.linalg.norm(quads[i] - centre, axis=1))] for i in idx]
+        )
+        side = np.sqrt(abs(cv2.contourArea(_ccw(inner).astype(np.float32))))
+        quad_side = np.sqrt(a.mean())
+        if side < 4 or not 0.4 < (quad_side / side) / ratio < 2.5:
+            continue
+        score = float(np.std(a) / a.mean() + abs(np.log((quad_side / side) / ratio)))
+        if score < best_score:
+            best, best_score = [quads[i] for i in idx], score
+    return best
+
+
+def _ccw(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    c = p.mean(axis=0)
+    return p[np.argsort(np.arctan2(p[:, 1] - c[1], p[:, 0] - c[0]))]
+
+
+def _side_points(
+    image: NDArray[np.uint8], a: NDArray[np.float64], b: NDArray[np.float64], inside: NDArray
+) -> NDArray[np.float64]:
+    """Sub-pixel edge points along the quad side a-b (light inside toward ``inside``)."""
+    d = b - a
+    length = float(np.linalg.norm(d))
+    t = d / length
+    nrm = np.array([-t[1], t[0]])
+    if (inside - a) @ nrm < 0:
+        nrm = -nrm  # nrm points into the light quadrant
+    ts = np.arange(0.15 * length, 0.85 * length, 1.0)
+    step = 0.25
+    offs = np.arange(-8.0, 8.0 + step / 2, step)
+    pts = a[None, None, :] + ts[:, None, None] * t + offs[None, :, None] * nrm
+    v = bilinear(image, pts.reshape(-1, 2)).reshape(len(ts), len(offs))
+    ok = np.all(np.isfinite(v), axis=1)
+    diff = np.diff(v[ok], axis=1)  # dark -> light along nrm: positive steps
+    if diff.shape[0] == 0:
+        return np.zeros((0, 2))
+    peak = np.argmax(diff, axis=1)
+    c, k, _ = edge_moment(diff, peak, int(round(4.0 / step)))
+    off = offs[0] + c * step
+    good = np.isfinite(off) & (k > 15)
+    base = a + ts[ok][good, None] * t
+    return base + off[good, None] * nrm
+
+
+def detect_registration_corners(
+    image_gray: NDArray[np.uint8],
+    registration: RegistrationConfig,
+    camera_matrix: NDArray[np.float64] | None = None,
+    distortion: NDArray[np.float64] | None = None,
+    x_axis_image_rad: float = 0.0,
+) -> NDArray[np.float64]:
+    """Raw-pixel corners (4, 2) of the crossing square, in the order of
+    :func:`registration_plane_points_m`. Raises ``ValueError`` with the reason."""
+    if not isinstance(image_gray, np.ndarray) or image_gray.dtype != np.uint8:
+        raise TypeError("image_gray must be a uint8 numpy array")
+    if image_gray.ndim != 2:
+        raise ValueError(f"image_gray must be [row, col], got shape {image_gray.shape}")
+    k, d = check_intrinsics(camera_matrix, distortion)
+    if float(image_gray.std()) < 2.0:
+        raise ValueError("registration object not found: blank image")
+    ratio = (
+        (registration.plate_side_m - registration.square_side_m) / 2 / registration.square_side_m
+    )
+    quads = _quads(image_gray)
+    group = _group(quads, ratio)
+    if group is None:
+        raise ValueError(
+            f"registration object not found: no four light quadrants around a dark cross "
+            f"({len(quads)} light quadrilaterals in the image)"
+        )
+    centre = np.mean([q.mean(axis=0) for q in group], axis=0)
+    sides = []  # (ideal-pixel points, direction) of each quadrant side along a groove
+    for q in group:
+        i = int(np.argmin(np.linalg.norm(q - centre, axis=1)))
+        for j in (i - 1, (i + 1) % 4):
+            raw = _side_points(image_gray, q[i], q[j], q.mean(axis=0))
+            if len(raw) < 5:
+                raise ValueError("registration object not found: groove edges not visible")
+            sides.append(undistort_points_px(raw, k, d))
+    lines = _lines_from_sides(sides)
+    corners = []
+    for la in lines[0]:
+        for lb in lines[1]:
+            corners.append(_intersect(la, lb))
+    ideal = np.array(corners)
+    raw_corners = distort_points_px(ideal, k, d)
+    h, w = image_gray.shape
+    if (
+        np.any(raw_corners < 0)
+        or np.any(raw_corners[:, 0] > w - 1)
+        or np.any(raw_corners[:, 1] > h - 1)
+    ):
+        raise ValueError("registration object: a corner lies off the image")
+    return _order(raw_corners, registration.angle_rad, x_axis_image_rad)
+
+
+def _fit_line(p: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    c = p.mean(axis=0)
+    _, _, vt = np.linalg.svd(p - c, full_matrices=False)
+    return c, vt[0]
+
+
+def _lines_from_sides(sides: list[NDArray[np.float64]]) -> list[list[tuple]]:
+    """Merge the 8 side point sets into 4 groove-edge lines, split into 2 directions."""
+    fits = [_fit_line(s) for s in sides]
+    used: set[int] = set()
+    merged = []
+    for i in range(len(sides)):
+        if i in used:
+            continue
+        ci, di = fits[i]
+        nrm = np.array([-di[1], di[0]])
+        best, best_d = None, math.inf
+        for j in range(len(sides)):
+            if j == i or j in used:
+                continue
+            cj, dj = fits[j]
+            if abs(di[0] * dj[1] - di[1] * dj[0]) > 0.1:
+                continue
+            dist = abs((cj - ci) @ nrm)
+            if dist < best_d:
+                best, best_d = j, dist
+        if best is None or best_d > 3.0:
+            raise ValueError("registration object not found: groove edges are not straight lines")
+        used.update((i, best))
+        merged.append(_fit_line(np.vstack([sides[i], sides[best]])))
+    if len(merged) != 4:
+        raise ValueError("registration object not found: expected four groove edges")
+    ref = merged[0][1]
+    group_a = [m for m in merged if abs(m[1] @ ref) > 0.7]
+    group_b = [m for m in merged if abs(m[1] @ ref) <= 0.7]
+    if len(group_a) != 2 or len(group_b) != 2:
+        raise ValueError("registration object not found: grooves are not two crossing pairs")
+    return [group_a, group_b]
+
+
+def _intersect(la: tuple, lb: tuple) -> NDArray[np.float64]:
+    (pa, da), (pb, db) = la, lb
+    m = np.column_stack([da, -db])
+    t = np.linalg.solve(m, pb - pa)
+    return pa + t[0] * da
+
+
+def _order(corners: NDArray[np.float64], angle_rad: float, x_axis_image_rad: float) -> NDArray:
+    c = corners.mean(axis=0)
+    # Image y points down: decreasing image angle is CCW in the plane seen from +Z.
+    cyc = corners[np.argsort(-np.arctan2(corners[:, 1] - c[1], corners[:, 0] - c[0]))]
+    expect = x_axis_image_rad - angle_rad
+    want = np.array([math.cos(expect), math.sin(expect)])
+    best, best_dot = cyc, -math.inf
+    for r in range(4):
+        p = np.roll(cyc, -r, axis=0)
+        # local +x: from the (-,-),(-,+) side to the (+,-),(+,+) side
+        v = 0.5 * (p[1] + p[2]) - 0.5 * (p[0] + p[3])
+        dot = float(v @ want / np.linalg.norm(v))
+        if dot > best_dot:
+            best, best_dot = p, dot
+    return best
+
+
+def calibration_from_registration(
+    image_gray: NDArray[np.uint8],
+    registration: RegistrationConfig,
+    camera_matrix: NDArray[np.float64] | None = None,
+    distortion: NDArray[np.float64] | None = None,
+    *,
+    beam_length_m: float = 0.835,
+    beam_width_m: float = 0.01905,
+    x_axis_image_rad: float = 0.0,
+) -> Calibration:
+    """Detect the registration object in a frame and build the :class:`Calibration`.
+    Raises ``ValueError`` with the reason when the object cannot be found."""
+    corners = detect_registration_corners(
+        image_gray, registration, camera_matrix, distortion, x_axis_image_rad
+    )
+    return Calibration(
+        corners,
+        registration_plane_points_m(registration),
+        camera_matrix,
+        distortion,
+        beam_length_m=beam_length_m,
+        beam_width_m=beam_width_m,
+    )
