@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
+from pathlib import Path
 
-from pipelines.commands._common import add_rig_argument, not_available
+from pipelines.commands._common import add_rig_argument
 from pipelines.commands._viewer_args import add_viewer_arguments
+from pipelines.errors import BeambenchError
 
 HELP = "measure frames, reconstruct, simulate and compare a run; write RESULTS.nc"
 
@@ -14,9 +17,98 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("log", metavar="RUN.mcap")
     p.add_argument("--out", metavar="RESULTS.nc", required=True)
     add_rig_argument(p)
-    p.add_argument("--calibration", metavar="CAL.json", default=None)
+    p.add_argument(
+        "--calibration",
+        metavar="CAL.json",
+        default=None,
+        help="registration and camera calibration (default: detect the registration "
+        "object in the first frames, with the intrinsics recorded in the log)",
+    )
+    p.add_argument(
+        "--model",
+        choices=("auto", "rigid", "modal", "fe"),
+        default="auto",
+        help="simulation model driven by the measured hub angle",
+    )
+    p.add_argument("--workers", type=int, default=None, help="processes measuring frames")
     add_viewer_arguments(p)
 
 
+def check_output_folder(path: Path, option: str) -> None:
+    if not path.parent.exists():
+        raise BeambenchError(f"{option} {path}: folder {path.parent} does not exist")
+    if path.is_dir():
+        raise BeambenchError(f"{option} {path}: is a folder")
+
+
 def run(args: argparse.Namespace) -> int:
-    return not_available("process", 6)
+    from pipelines.process import process_run, write_processed
+    from pipelines.rig import load_rig
+
+    log_path = Path(args.log)
+    out = Path(args.out)
+    if not log_path.is_file():
+        raise BeambenchError(f"{log_path}: no such file")
+    check_output_folder(out, "--out")
+    if args.rrd:
+        check_output_folder(Path(args.rrd), "--rrd")
+    if args.workers is not None and args.workers < 1:
+        raise BeambenchError(f"--workers must be at least 1, got {args.workers}")
+    rig = load_rig(args.rig) if args.rig else None
+    cal = Path(args.calibration) if args.calibration else None
+    processed = process_run(
+        log_path, rig=rig, calibration_path=cal, model=args.model, workers=args.workers
+    )
+    write_processed(processed, out)
+    if args.rrd or args.spawn or args.connect:
+        stream_to_viewer(processed, log_path, args)
+    print_summary(processed, out)
+    return 0
+
+
+def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace) -> None:
+    import time
+
+    from pipelines.process import Processed, load_log
+    from pipelines.review import stream_processed
+    from pipelines.viewer import open_viewer
+
+    assert isinstance(processed, Processed)
+    t0 = time.perf_counter()
+    run = load_log(log_path)
+    try:
+        viewer = open_viewer(
+            "beambench", rrd_path=args.rrd, spawn=args.spawn, connect_url=args.connect
+        )
+    except ValueError as exc:
+        raise BeambenchError(str(exc)) from None
+    try:
+        stream_processed(processed, log_path, viewer, run)
+    except BaseException:
+        viewer.abort()
+        raise
+    viewer.close()
+    processed.timings.viewer_s = time.perf_counter() - t0
+
+
+def print_summary(processed: object, out: Path) -> None:
+    from pipelines.process import Processed
+
+    assert isinstance(processed, Processed)
+    ds = processed.results
+    a = ds.attrs
+    n_ok = int(ds["frame_ok"].values.sum())
+    print(f"wrote {out}")
+    print(f"  frames measured {n_ok}/{ds.sizes['frame_time']}")
+    off = a.get("camera_to_daq_offset_s", math.nan)
+    print(f"  camera-to-DAQ offset {off * 1e3:.2f} ms ({processed.alignment.reason or 'ok'})")
+    print(f"  simulation {a['sim_model']} (solve {processed.sim.wall_time_s:.2f} s)")
+    for key in (
+        "tip_lateral_image_vs_sim_rms_m",
+        "tip_lateral_strain_vs_image_rms_m",
+        "tip_lateral_strain_vs_sim_rms_m",
+    ):
+        if key in a:
+            print(f"  {key} = {float(a[key]) * 1e3:.3f} mm")
+    t = processed.timings.as_dict()
+    print("  time: " + ", ".join(f"{k[:-2]} {v:.2f} s" for k, v in t.items()))
