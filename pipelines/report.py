@@ -33,9 +33,9 @@ from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
 
 from pipelines.results import (
-    ERROR_METRICS,
-    STRAIN_METRICS,
     VARIABLES,
+    error_table,
+    format_value,
     rig_json_of,
     steady_state_mask,
     summarise_errors,
@@ -52,8 +52,6 @@ PLOTS = {
     "fig10": "fig10_tip_path.png",
     "fig11": "fig11_tip_vs_hub.png",
 }
-# Display units of the error table: metres shown as mm, strain as microstrain.
-_DISPLAY = {"m": ("mm", 1e3), "1": ("µε", 1e6)}
 
 
 def tip_positions_m(
@@ -253,25 +251,6 @@ def _plot_fig11(ds: xr.Dataset, path: Path) -> None:
     _save(fig, path)
 
 
-def _fmt(value: float, scale: float) -> str:
-    return "n/a" if not math.isfinite(value) else f"{value * scale:.4g}"
-
-
-def error_table(errors: dict[str, Any]) -> list[str]:
-    """The error summary as markdown table lines (mm and microstrain)."""
-    lines = ["| comparison | value | unit |", "|---|---:|---|"]
-    for m in ERROR_METRICS:
-        unit, scale = _DISPLAY[m.units]
-        lines.append(f"| {m.label} | {_fmt(float(errors[m.key]), scale)} | {unit} |")
-    for m in STRAIN_METRICS:
-        unit, scale = _DISPLAY[m.units]
-        for j, v in enumerate(errors[m.key]):
-            label = m.label.replace("strain,", f"strain g{j + 1},", 1)
-            lines.append(f"| {label} | {_fmt(float(v), scale)} | {unit} |")
-    lines.append(f"| frames compared | {int(errors['n_frames_compared'])} | |")
-    return lines
-
-
 def write_report(
     ds: xr.Dataset,
     out_dir: str | os.PathLike[str],
@@ -319,7 +298,7 @@ def write_report(
         f"- duration: {t[-1] - t[0]:.2f} s, {t.size} DAQ samples",
         f"- frames: {int(ds.sizes['frame_time'])} "
         f"({int(np.count_nonzero(~ds['frame_ok'].values.astype(bool)))} gave no measurement)",
-        f"- camera-to-DAQ time offset: {_fmt(offset, 1e3)} ms",
+        f"- camera-to-DAQ time offset: {format_value(offset, 1e3)} ms",
         "",
         "## Error summary",
         "",

@@ -110,6 +110,8 @@ STRAIN_METRICS: tuple[ErrorMetric, ...] = (
     ErrorMetric("strain_vs_sim_max", "strain, measured - sim, max abs", "1"),
 )
 COUNT_KEYS = ("n_frames_compared",)
+# Display units of the error table: metres shown as mm, strain as microstrain.
+DISPLAY_UNITS = {"m": ("mm", 1e3), "1": ("µε", 1e6)}
 
 FloatArray = NDArray[np.float64]
 
@@ -495,3 +497,24 @@ def steady_state_mask(ds: xr.Dataset, cycles: int = 3) -> NDArray[np.bool_]:
     if not math.isfinite(period) or t[-1] - t[0] <= cycles * period:
         return np.ones(t.shape, dtype=bool)
     return np.asarray(t >= t[-1] - cycles * period)
+
+
+def format_value(value: float, scale: float = 1.0) -> str:
+    """``value * scale`` to 4 significant digits, or ``n/a`` when not finite."""
+    return "n/a" if not math.isfinite(value) else f"{value * scale:.4g}"
+
+
+def error_table(errors: Mapping[str, Any]) -> list[str]:
+    """The error summary (:func:`summarise_errors`) as markdown table lines, in mm and
+    microstrain."""
+    lines = ["| comparison | value | unit |", "|---|---:|---|"]
+    for m in ERROR_METRICS:
+        unit, scale = DISPLAY_UNITS[m.units]
+        lines.append(f"| {m.label} | {format_value(float(errors[m.key]), scale)} | {unit} |")
+    for m in STRAIN_METRICS:
+        unit, scale = DISPLAY_UNITS[m.units]
+        for j, v in enumerate(errors[m.key]):
+            label = m.label.replace("strain,", f"strain g{j + 1},", 1)
+            lines.append(f"| {label} | {format_value(float(v), scale)} | {unit} |")
+    lines.append(f"| frames compared | {int(errors['n_frames_compared'])} | |")
+    return lines

@@ -20,6 +20,7 @@ Entity paths::
     /camera/image/centreline ...   overlays in pixels, drawn on top of the image
     /fig11/measured, /fig11/sim    Fig. 11: tip lateral (mm) against hub angle (deg)
     /events                        run events as a text log; /events/frames: failed frames
+    /summary                       the error summary (markdown)
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ import rerun.blueprint as rrb
 import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
-from pipelines.results import VARIABLES, steady_state_mask
+from pipelines.results import VARIABLES, error_table, steady_state_mask, summarise_errors
 
 log = logging.getLogger(__name__)
 
@@ -158,7 +159,10 @@ def build_blueprint(n_gauges: int = N_GAUGES_IN_LAYOUT) -> rrb.Blueprint:
         rrb.Horizontal(
             rrb.Vertical(
                 rrb.Spatial2DView(name="camera", origin="/camera"),
-                rrb.TextLogView(name="events", origin="/events"),
+                rrb.Tabs(
+                    rrb.TextLogView(name="events", origin="/events"),
+                    rrb.TextDocumentView(name="error summary", origin="/summary"),
+                ),
                 row_shares=[3, 1],
             ),
             rrb.Vertical(
@@ -496,8 +500,20 @@ class RunViewer:
             strict=True,
         )
 
+    def log_summary(self, markdown: str) -> None:
+        """A markdown document shown beside the event log (static)."""
+        if not isinstance(markdown, str):
+            raise TypeError(f"markdown must be a str, got {type(markdown).__name__}")
+        self.recording.log(
+            "/summary",
+            rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN),
+            static=True,
+            strict=True,
+        )
+
     def log_results(self, ds: xr.Dataset) -> None:
-        """Everything a results Dataset holds (see ``pipelines.results``)."""
+        """Everything a results Dataset holds (see ``pipelines.results``), and its error
+        summary as a markdown document."""
         missing = [name for name in VARIABLES if name not in ds]
         if missing:
             raise ValueError(f"ds is not a results Dataset: missing {', '.join(missing)}")
@@ -521,6 +537,13 @@ class RunViewer:
             np.asarray(sim_hub)[steady],
             np.asarray(ds["sim_tip_lateral"].values)[steady],
         )
+        model = ds.attrs.get("sim_model", "?")
+        lines = [
+            f"# Simulation ({model}) against measurement",
+            "",
+            *error_table(summarise_errors(ds)),
+        ]
+        self.log_summary("\n".join(lines))
 
 
 def _level(level: Any) -> str:

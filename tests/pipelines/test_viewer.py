@@ -12,7 +12,7 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from pipelines.results import make_results
+from pipelines.results import make_results, summarise_errors
 from pipelines.rig import Rig
 from pipelines.viewer import FrameOverlay, open_viewer, rrd_entities
 
@@ -204,6 +204,11 @@ def test_log_results_shows_everything_in_the_results(tmp_path: Path) -> None:
     measured = _rows(path, "/fig11/measured", "Points2D:positions")
     assert len(measured[0][1]) == expected
     assert 0 < expected < int(ds["frame_ok"].sum())
+    # The error summary travels as a markdown document, in mm.
+    doc = _rows(path, "/summary", "TextDocument:text")[0][1][0]
+    rms_mm = 1e3 * summarise_errors(ds)["tip_lateral_image_vs_sim_rms_m"]
+    assert rms_mm == pytest.approx(0.1, rel=1e-6)  # the image was offset by 0.1 mm
+    assert "| tip lateral, image - sim, RMS | 0.1 | mm |" in doc
 
 
 def test_rrd_is_replaced_only_when_the_run_succeeds(tmp_path: Path) -> None:
