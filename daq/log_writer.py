@@ -205,8 +205,7 @@ class LogWriter:
         t = max(0, event.t_ns)
         self._add(TOPIC_EVENTS, t, encode_event(event), self._event_sequence)
         self._event_sequence += 1
-        level = {"info": logging.INFO, "warning": logging.WARNING, "error": logging.ERROR}
-        log.log(level[event.level], "%s: %s", event.name, event.message)
+        log.info("event %s (%s): %s", event.name, event.level, event.message)
         self.maybe_flush()
 
     def maybe_flush(self) -> bool:

@@ -10,6 +10,7 @@ configuration mapping (:func:`channel_settings`) is a pure function with tests.
 
 from __future__ import annotations
 
+import importlib
 import logging
 import time
 from types import TracebackType
@@ -34,12 +35,17 @@ ERROR_READ_TIMEOUT = -200284
 _HINT = "install it with `pip install beambench[hardware]` (and NI-DAQmx), or use --backend fake"
 
 
-def check_nidaqmx() -> None:
-    """Raise ``DriverUnavailableError`` (suggesting ``--backend fake``) without nidaqmx."""
+def _vendor(module: str = "nidaqmx") -> Any:
+    """Import the vendor package (or one of its modules) only when a device is used."""
     try:
-        import nidaqmx  # noqa: F401
+        return importlib.import_module(module)
     except ImportError:
         raise DriverUnavailableError("nidaqmx", _HINT) from None
+
+
+def check_nidaqmx() -> None:
+    """Raise ``DriverUnavailableError`` (suggesting ``--backend fake``) without nidaqmx."""
+    _vendor()
 
 
 def channel_settings(
@@ -138,8 +144,8 @@ class NiStrainDaq:
         }
 
     def _configure(self) -> Any:
-        import nidaqmx
-        from nidaqmx import constants
+        nidaqmx = _vendor()
+        constants = _vendor("nidaqmx.constants")
 
         task = nidaqmx.Task()
         try:
@@ -168,14 +174,12 @@ class NiStrainDaq:
         return task, rate
 
     def start(self) -> None:
-        check_nidaqmx()
-        import nidaqmx.errors
-
+        errors = _vendor("nidaqmx.errors")
         try:
             self._task, self._rate_hz = self._configure()
             self._block = max(1, round(self.daq.block_duration_s * self._rate_hz))
             self._task.start()
-        except nidaqmx.errors.DaqError as exc:
+        except errors.DaqError as exc:
             raise DeviceError(f"NI-DAQmx: {exc}") from None
         self._next_seq = 0
         self._start_ns = time.monotonic_ns()
@@ -186,14 +190,13 @@ class NiStrainDaq:
         )
 
     def read_block(self, timeout_s: float) -> RawBlock:
-        import nidaqmx.errors
-
+        errors = _vendor("nidaqmx.errors")
         if self._task is None:
             raise DeviceError("NI-DAQmx: read_block before start()")
         events: list[Event] = []
         try:
             data = self._task.read(number_of_samples_per_channel=self._block, timeout=timeout_s)
-        except nidaqmx.errors.DaqError as exc:
+        except errors.DaqError as exc:
             if exc.error_code == ERROR_READ_TIMEOUT:
                 raise DeviceTimeoutError("NI-DAQmx", timeout_s) from None
             if exc.error_code != ERROR_SAMPLES_NO_LONGER_AVAILABLE:

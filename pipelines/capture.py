@@ -349,7 +349,7 @@ def _close_after_failure(writer: LogWriter) -> None:
     try:
         writer.close()
     except OSError as exc:  # the disk is still full: the flushed part stays recoverable
-        log.warning("%s: could not finish the log: %s", writer.path, exc)
+        log.info("%s: could not finish the log: %s", writer.path, exc)
 
 
 def _loop(
