@@ -104,7 +104,7 @@ def _side_points(
     if diff.shape[0] == 0:
         return np.zeros((0, 2))
     peak = np.argmax(diff, axis=1)
-    c, k, _ = edge_moment(diff, peak, int(round(4.0 / step)))
+    c, k, _ = edge_moment(diff, peak, round(4.0 / step))
     off = offs[0] + c * step
     good = np.isfinite(off) & (k > 15)
     base = a + ts[ok][good, None] * t

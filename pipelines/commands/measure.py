@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
 
-from pipelines.commands._common import not_available
+from pipelines.errors import BeambenchError
 
 HELP = "measure hub angle and tip deflection in still images"
 
@@ -13,7 +17,60 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("images", metavar="IMAGE", nargs="+")
     p.add_argument("--calibration", metavar="CAL.json", required=True)
     p.add_argument("--json", action="store_true", help="one JSON object per image")
+    p.add_argument(
+        "--method", choices=("default", "paper"), default="default", help="measurement chain"
+    )
+
+
+def _read_images(paths: list[str]) -> list[tuple[str, Any]]:
+    from vision import decode
+
+    out = []
+    for path in paths:
+        try:
+            data = Path(path).read_bytes()
+        except FileNotFoundError:
+            raise BeambenchError(f"{path}: no such file") from None
+        except OSError as exc:
+            raise BeambenchError(f"{path}: cannot be read ({exc.strerror})") from None
+        try:
+            out.append((path, decode(data)))
+        except ValueError as exc:
+            raise BeambenchError(f"{path}: {exc}") from None
+    return out
+
+
+def _text(path: str, m: dict[str, Any]) -> str:
+    if not m["ok"]:
+        return f"{path}: no measurement ({m['reason']})"
+
+    def mm(v: object) -> str:
+        return f"{float(v) * 1e3:+.3f} mm"  # type: ignore[arg-type]
+
+    hub = math.degrees(float(m["hub_angle_rad"]))
+    stations = ", ".join(
+        f"{float(s) * 1e3:.0f} mm: {mm(v)}"
+        for s, v in zip(m["stations_m"], m["lateral_at_stations_m"], strict=True)
+    )
+    return (
+        f"{path}: hub angle {hub:.4f} deg, tip lateral {mm(m['tip_lateral_m'])}, "
+        f"tip longitudinal {mm(m['tip_longitudinal_m'])}; lateral at {stations}"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    return not_available("measure", 5)
+    from vision import Measurer, load_calibration
+
+    try:
+        cal = load_calibration(args.calibration)
+    except ValueError as exc:
+        raise BeambenchError(f"{args.calibration}: {exc}") from None
+    images = _read_images(args.images)
+    measurer = Measurer(cal, method=args.method)
+    for path, image in images:
+        m = measurer.measure(image).to_dict()
+        if args.json:
+            print(json.dumps({"image": path, **m}))
+        else:
+            print(_text(path, m))
+    return 0
