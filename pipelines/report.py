@@ -9,7 +9,8 @@ the Agg canvas, so there is no pyplot, no display and no global state):
 - ``fig10_tip_path.png``: the paper's Fig. 10 view, the tip's path in the plane of
   motion for the flexible beam and for the rigid beam on the same hub angle;
 - ``fig11_tip_vs_hub.png``: the paper's Fig. 11 view, lateral tip deflection against
-  hub angle, measured points over the simulated loop of the last three crank cycles.
+  hub angle, measured points (every measured frame after the simulation's start-up,
+  ``results.fig11_frames_mask``) over the simulated loop of the last three crank cycles.
 
 Both figures put measured and simulated values on the potentiometer's angle (the
 measured points at the frame times), so a constant offset between the image's frame and
@@ -35,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from pipelines.results import (
     VARIABLES,
     error_table,
+    fig11_frames_mask,
     format_value,
     rig_json_of,
     steady_state_mask,
@@ -174,13 +176,6 @@ def _frame_hub_angle(ds: xr.Dataset) -> FloatArray:
     return np.asarray(out, dtype=np.float64)
 
 
-def _steady_frames(ds: xr.Dataset, steady: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    ft = ds["frame_time"].values
-    t0 = ds["time"].values[steady][0]
-    ok = ds["frame_ok"].values.astype(bool)
-    return np.asarray(ok & (ft >= t0))
-
-
 def _plot_fig10(ds: xr.Dataset, path: Path) -> None:
     pivot_to_tip, mount = _rig_geometry(ds)
     steady = steady_state_mask(ds)
@@ -193,7 +188,7 @@ def _plot_fig10(ds: xr.Dataset, path: Path) -> None:
     flex, rigid = tip_positions_m(
         hub[steady] + mount, ds["sim_tip_lateral"].values[steady], sim_lon, pivot_to_tip
     )
-    frames = _steady_frames(ds, steady)
+    frames = fig11_frames_mask(ds)
     meas, _ = tip_positions_m(
         _frame_hub_angle(ds)[frames] + mount,
         ds["tip_lateral"].values[frames],
@@ -218,7 +213,7 @@ def _plot_fig10(ds: xr.Dataset, path: Path) -> None:
     zoom.set_ylim(end[1] - half_m, end[1] + half_m)
     zoom.set_title("end of stroke, zoomed", fontsize=10)
     full.set_ylabel("y (m)")
-    full.set_title("Fig. 10 view: tip positions, last three cycles", fontsize=10)
+    full.set_title("Fig. 10 view: simulated tip path of the last three cycles", fontsize=10)
     full.legend(fontsize=8)
     _save(fig, path)
 
@@ -226,7 +221,7 @@ def _plot_fig10(ds: xr.Dataset, path: Path) -> None:
 def _plot_fig11(ds: xr.Dataset, path: Path) -> None:
     steady = steady_state_mask(ds)
     hub = ds["hub_angle_sim"].values if "hub_angle_sim" in ds else ds["rocker_angle"].values
-    frames = _steady_frames(ds, steady)
+    frames = fig11_frames_mask(ds)
     fig = Figure(figsize=(7, 4.5), layout="constrained")
     ax = fig.subplots()
     ax.plot(
@@ -245,7 +240,7 @@ def _plot_fig11(ds: xr.Dataset, path: Path) -> None:
     )
     ax.set_xlabel("hub (rocker) angle (deg)")
     ax.set_ylabel("lateral tip deflection (mm)")
-    ax.set_title("Fig. 11 view: last three cycles", fontsize=10)
+    ax.set_title("Fig. 11 view: simulated loop of the last three cycles", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     _save(fig, path)
@@ -303,7 +298,8 @@ def write_report(
         "## Error summary",
         "",
         "Differences are first-named minus second-named; series on the DAQ clock are",
-        "interpolated at the frame times for comparisons with images.",
+        "interpolated at the frame times for comparisons with images. Comparisons with the",
+        f"simulation start at {errors['sim_compared_from_s']:.2f} s, after its start-up transient.",
         "",
         *error_table(errors),
         "",

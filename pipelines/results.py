@@ -109,7 +109,6 @@ STRAIN_METRICS: tuple[ErrorMetric, ...] = (
     ErrorMetric("strain_vs_sim_rms", "strain, measured - sim, RMS", "1"),
     ErrorMetric("strain_vs_sim_max", "strain, measured - sim, max abs", "1"),
 )
-COUNT_KEYS = ("n_frames_compared",)
 # Display units of the error table: metres shown as mm, strain as microstrain.
 DISPLAY_UNITS = {"m": ("mm", 1e3), "1": ("µε", 1e6)}
 
@@ -326,12 +325,28 @@ def _at_frames(ds: xr.Dataset, name: str) -> FloatArray:
     return np.asarray(out, dtype=np.float64)
 
 
+def sim_start_s(ds: xr.Dataset) -> float:
+    """Time from which the simulation is compared: the first sample plus the global
+    attribute ``settle_time_s`` (the start-up transient of a simulation started from
+    rest; 0 when absent)."""
+    settle = ds.attrs.get("settle_time_s", 0.0)
+    try:
+        settle = float(settle)
+    except (TypeError, ValueError):
+        settle = 0.0
+    if not math.isfinite(settle) or settle < 0:
+        settle = 0.0
+    return float(ds["time"].values[0]) + settle
+
+
 def summarise_errors(ds: xr.Dataset) -> dict[str, Any]:
     """Compare simulation, strain-based and image-based results.
 
     Time series on ``time`` are linearly interpolated at the frame times for the
     comparisons with images; only frames with ``frame_ok`` and finite values inside the
-    DAQ time span count. Differences are taken as first-named minus second-named.
+    DAQ time span count. Comparisons with the simulation start at :func:`sim_start_s`
+    (after its start-up transient); strain-based against image uses every frame.
+    Differences are taken as first-named minus second-named.
 
     Parameters
     ----------
@@ -341,31 +356,39 @@ def summarise_errors(ds: xr.Dataset) -> dict[str, Any]:
     -------
     dict
         The keys of :data:`ERROR_METRICS` (float, m; NaN when nothing can be compared),
-        ``strain_vs_sim_rms`` and ``strain_vs_sim_max`` (list of float per gauge, m/m) and
-        ``n_frames_compared`` (int).
+        ``strain_vs_sim_rms`` and ``strain_vs_sim_max`` (list of float per gauge, m/m),
+        ``n_frames_compared`` (int, frames in the image - sim comparison) and
+        ``sim_compared_from_s`` (float, s).
     """
     for name in VARIABLES:
         if name not in ds:
             raise ValueError(f"ds is missing variable {name!r}")
+    start = sim_start_s(ds)
+    t = np.asarray(ds["time"].values, dtype=np.float64)
+    late = t >= start
+    late_frames = np.asarray(ds["frame_time"].values, dtype=np.float64) >= start
     ok = np.asarray(ds["frame_ok"].values, dtype=bool)
     image = np.where(ok, np.asarray(ds["tip_lateral"].values, dtype=np.float64), np.nan)
     sim_f = _at_frames(ds, "sim_tip_lateral")
     strain_f = _at_frames(ds, "tip_lateral_strain")
+    image_vs_sim = np.where(late_frames, image - sim_f, np.nan)
     out: dict[str, Any] = {}
     pairs = {
-        "tip_lateral_image_vs_sim": image - sim_f,
+        "tip_lateral_image_vs_sim": image_vs_sim,
         "tip_lateral_strain_vs_image": strain_f - image,
         "tip_lateral_strain_vs_sim": np.asarray(
-            ds["tip_lateral_strain"].values - ds["sim_tip_lateral"].values, dtype=np.float64
+            ds["tip_lateral_strain"].values[late] - ds["sim_tip_lateral"].values[late],
+            dtype=np.float64,
         ),
     }
     for stem, diff in pairs.items():
         out[f"{stem}_rms_m"], out[f"{stem}_max_m"] = _rms_max(diff)
-    d = np.asarray(ds["strain"].values - ds["sim_strain"].values, dtype=np.float64)
+    d = np.asarray(ds["strain"].values[late] - ds["sim_strain"].values[late], dtype=np.float64)
     per_gauge = [_rms_max(d[:, j]) for j in range(d.shape[1])]
     out["strain_vs_sim_rms"] = [r for r, _ in per_gauge]
     out["strain_vs_sim_max"] = [m for _, m in per_gauge]
-    out["n_frames_compared"] = int(np.count_nonzero(np.isfinite(image - sim_f)))
+    out["n_frames_compared"] = int(np.count_nonzero(np.isfinite(image_vs_sim)))
+    out["sim_compared_from_s"] = start
     return out
 
 
@@ -518,3 +541,19 @@ def error_table(errors: Mapping[str, Any]) -> list[str]:
             lines.append(f"| {label} | {format_value(float(v), scale)} | {unit} |")
     lines.append(f"| frames compared | {int(errors['n_frames_compared'])} | |")
     return lines
+
+
+def fig11_frames_mask(ds: xr.Dataset) -> NDArray[np.bool_]:
+    """(F,) bool: the frames drawn as measured points over the simulated loop.
+
+    Every frame that gave a measurement inside the DAQ span, after the simulation's
+    start-up transient (global attribute ``settle_time_s``, s, when present). Points of
+    any steady cycle lie on the steady loop, so they are not limited to the last cycles.
+    """
+    ft = np.asarray(ds["frame_time"].values, dtype=np.float64)
+    t = np.asarray(ds["time"].values, dtype=np.float64)
+    settle = float(ds.attrs.get("settle_time_s", 0.0))
+    if not math.isfinite(settle):
+        settle = 0.0
+    ok = np.asarray(ds["frame_ok"].values, dtype=bool)
+    return np.asarray(ok & (ft >= t[0] + settle) & (ft <= t[-1]))

@@ -41,7 +41,13 @@ import rerun.blueprint as rrb
 import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
-from pipelines.results import VARIABLES, error_table, steady_state_mask, summarise_errors
+from pipelines.results import (
+    VARIABLES,
+    error_table,
+    fig11_frames_mask,
+    steady_state_mask,
+    summarise_errors,
+)
 
 log = logging.getLogger(__name__)
 
@@ -529,11 +535,11 @@ class RunViewer:
         # the image frame and the potentiometer zero does not shift the points.
         hub_at_frames = np.interp(ft, t, rocker, left=np.nan, right=np.nan) if ft.size else ft
         steady = steady_state_mask(ds)
+        points = fig11_frames_mask(ds)
         sim_hub = ds["hub_angle_sim"].values if "hub_angle_sim" in ds else rocker
-        in_window = (ft >= t[steady][0]) if ft.size else np.zeros(0, dtype=bool)
         self.log_fig11(
-            hub_at_frames[in_window],
-            image[in_window],
+            hub_at_frames[points],
+            image[points],
             np.asarray(sim_hub)[steady],
             np.asarray(ds["sim_tip_lateral"].values)[steady],
         )

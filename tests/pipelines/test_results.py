@@ -247,3 +247,26 @@ def test_steady_state_window_is_the_last_three_crank_cycles() -> None:
     assert steady_state_mask(ds).all()  # period unknown: all of it
     with pytest.raises(ValueError, match="cycles"):
         steady_state_mask(ds, cycles=0)
+
+
+def test_the_simulation_start_up_transient_is_left_out_of_the_comparison() -> None:
+    kw = _inputs(failed=())
+    t = kw["time_s"]
+    # The simulation starts from rest: a big error in its first 0.5 s only.
+    transient = np.where(t < 0.5, 0.05, 0.0)
+    kw["sim_tip_lateral_m"] = kw["sim_tip_lateral_m"] - transient
+    kw["sim_strain"] = kw["sim_strain"] - 1e-3 * transient[:, None]
+    kw["attrs"] = _attrs(settle_time_s=0.5)
+    ds = make_results(**kw)
+    e = summarise_errors(ds)
+    assert e["sim_compared_from_s"] == 0.5
+    assert e["tip_lateral_image_vs_sim_max_m"] == pytest.approx(IMAGE_ERR_M, rel=1e-9)
+    assert e["tip_lateral_strain_vs_sim_max_m"] == pytest.approx(STRAIN_TIP_ERR_M, rel=1e-9)
+    np.testing.assert_allclose(e["strain_vs_sim_max"], np.abs(STRAIN_ERR), rtol=1e-9)
+    n_late = int(np.count_nonzero(ds["frame_time"].values >= 0.5))
+    assert e["n_frames_compared"] == n_late < ds.sizes["frame_time"]
+    # Strain-based against images does not involve the simulation: every frame counts.
+    ds.attrs["settle_time_s"] = 0.0
+    e0 = summarise_errors(ds)
+    assert e0["tip_lateral_strain_vs_image_rms_m"] == e["tip_lateral_strain_vs_image_rms_m"]
+    assert e0["tip_lateral_image_vs_sim_max_m"] == pytest.approx(0.05 + IMAGE_ERR_M, rel=1e-6)
