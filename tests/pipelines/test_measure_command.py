@@ -69,7 +69,8 @@ def test_json_lines_per_image(files, capsys) -> None:
 def test_text_output(files, capsys) -> None:
     assert main(["measure", str(files["frame.jpg"]), "--calibration", str(files["cal.json"])]) == 0
     out = capsys.readouterr().out
-    assert "hub angle 29" in out and "tip lateral +25." in out
+    hub = float(out.split("hub angle ")[1].split(" deg")[0])
+    assert hub == pytest.approx(290.0, abs=0.02) and "tip lateral +25." in out
 
 
 @pytest.mark.parametrize(
