@@ -118,13 +118,15 @@ def _messages(
     topics: Iterable[str],
     start_ns: int | None,
     end_ns: int | None,
+    *,
+    ordered: bool = True,
 ) -> Iterator[tuple[Schema | None, Channel, Message]]:
     try:
         yield from reader.iter_messages(
             topics=list(topics),
             starting_at=start_ns,
             ending_before=end_ns,
-            log_time_order=True,
+            log_time_order=ordered,
         )
     except READ_ERRORS as exc:
         raise LogError(str(path), f"corrupt log data ({type(exc).__name__}: {exc})") from None
@@ -191,7 +193,8 @@ def read_run(
         events: list[Event] = []
         camera_info = None
         if want:
-            for _, channel, message in _messages(p, reader, want, start_ns, end_ns):
+            # file order, sorted below: much faster than the reader's merge for 400 Hz
+            for _, channel, message in _messages(p, reader, want, start_ns, end_ns, ordered=False):
                 try:
                     if channel.topic == TOPIC_SAMPLES:
                         t, values = decode_sample(message.data)
@@ -208,6 +211,12 @@ def read_run(
                         f"bad {channel.topic} message at log time {message.log_time} "
                         f"({type(exc).__name__}: {exc})",
                     ) from None
+    order = np.argsort(np.asarray(times, dtype=np.int64), kind="stable")
+    if len(order) and np.any(np.diff(order) != 1):
+        times = [times[i] for i in order]
+        rows = [rows[i] for i in order]
+        seqs = [seqs[i] for i in order]
+    events.sort(key=lambda e: e.t_ns)  # stable: same-time events keep their file order
     samples = _samples_block(times, rows, seqs)
     return RunLog(
         path=p,
@@ -276,7 +285,7 @@ def scan_log(path: str | os.PathLike[str]) -> tuple[dict[str, ChannelStats], dic
         summary = reader.get_summary()
         assert summary is not None
         per: dict[int, tuple[list[int], list[int]]] = {cid: ([], []) for cid in summary.channels}
-        for _, channel, message in _messages(p, reader, TOPICS, None, None):
+        for _, channel, message in _messages(p, reader, TOPICS, None, None, ordered=False):
             t, s = per[channel.id]
             t.append(message.log_time)
             s.append(message.sequence)

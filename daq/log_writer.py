@@ -43,8 +43,11 @@ from daq.records import Event, Frame, SampleBlock
 log = logging.getLogger(__name__)
 
 _U32 = 0xFFFFFFFF
-# Chunks are ended by flushes (about one per second), not by size: 10 s of 15 fps JPEG.
-_CHUNK_SIZE = 256 * 1024 * 1024
+# Chunks end at each flush (about once a second) or at this size, whichever comes first.
+_CHUNK_SIZE = 8 * 1024 * 1024
+# Frames are kept out of the chunks that hold samples and events (up to this many frames
+# per chunk), so reading samples never decompresses images.
+_FRAMES_PER_CHUNK = 8
 
 
 class LogWriter:
@@ -103,6 +106,7 @@ class LogWriter:
         self.last_flushed_log_time_ns: int | None = None
         self._max_log_time_ns: int | None = None
         self._event_sequence = 0
+        self._frames: list[Frame] = []
         try:
             mode = modes[compression]
             self._mcap = Writer(
@@ -189,13 +193,21 @@ class LogWriter:
             raise TypeError(f"frame must be a Frame, got {type(frame).__name__}")
         if frame.t_ns < 0:
             raise ValueError(f"frame.t_ns must be >= 0, got {frame.t_ns}")
-        self._add(
-            TOPIC_IMAGE,
-            frame.t_ns,
-            encode_image(frame.t_ns, frame.data, frame.encoding),
-            frame.sequence,
-        )
+        self._frames.append(frame)
+        if len(self._frames) >= _FRAMES_PER_CHUNK:
+            self._write_frame_chunk()
         self.maybe_flush()
+
+    def _write_frame_chunk(self) -> None:
+        """End the chunk of samples and events, then write the held frames as a chunk."""
+        if not self._frames:
+            return
+        self._mcap.flush()
+        for frame in self._frames:
+            data = encode_image(frame.t_ns, frame.data, frame.encoding)
+            self._add(TOPIC_IMAGE, frame.t_ns, data, frame.sequence)
+        self._frames.clear()
+        self._mcap.flush()
 
     def write_event(self, event: Event) -> None:
         """One ``/events`` message (``foxglove.Log``); also logged with ``logging``."""
@@ -218,6 +230,7 @@ class LogWriter:
     def flush(self) -> None:
         """End the chunk in progress, write it and its indexes, and fsync the file."""
         self._check_open()
+        self._write_frame_chunk()
         self._mcap.flush()
         os.fsync(self._file.fileno())
         self._last_flush = time.monotonic()
@@ -232,6 +245,7 @@ class LogWriter:
             return
         self._closed = True
         try:
+            self._write_frame_chunk()
             self._mcap.finish()
             self._file.flush()
             os.fsync(self._file.fileno())

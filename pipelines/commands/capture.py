@@ -88,9 +88,14 @@ def run(args: argparse.Namespace) -> int:
         make_synthetic_devices = getattr(synthetic, "make_synthetic_devices", None)
         if make_synthetic_devices is None:
             raise BeambenchError("--backend fake: the synthetic bench is not available yet")
-        daq_device, camera, camera_info = make_synthetic_devices(
-            rig, args.duration, realtime=args.realtime, seed=rig.synthetic.seed
-        )
+        try:
+            daq_device, camera, camera_info = make_synthetic_devices(
+                rig, args.duration, realtime=args.realtime, seed=rig.synthetic.seed
+            )
+        except ImportError as exc:  # a part of the synthetic bench has not landed yet
+            raise BeambenchError(
+                f"--backend fake: the synthetic bench is not available ({exc})"
+            ) from None
     else:
         daq_device, camera, camera_info = hardware_devices(rig)
     progress = _progress_bar if sys.stderr.isatty() else None
