@@ -178,6 +178,10 @@ def _check_attrs(attrs: Mapping[str, Any]) -> dict[str, Any]:
     # Dicts and lists of dicts are flattened now, so the in-memory Dataset already has
     # the on-disk attribute types.
     for key, value in list(out.items()):
+        if not isinstance(key, str) or not key:
+            raise TypeError(f"attrs keys must be non-empty str, got {key!r}")
+        if value is None:
+            raise TypeError(f"attrs[{key!r}] is None; NetCDF cannot store it (leave it out)")
         if isinstance(value, Mapping):
             out[key] = json.dumps(value, sort_keys=True, default=_json_default)
     return out

@@ -195,6 +195,10 @@ def test_missing_or_wrong_inputs_name_the_parameter() -> None:
     with pytest.raises(ValueError, match="rig_json"):
         make_results(**kw)
     kw = _inputs()
+    kw["attrs"] = _attrs(calibration=None)
+    with pytest.raises(TypeError, match="calibration"):
+        make_results(**kw)
+    kw = _inputs()
     kw["station_m"] = np.array([0.1])
     with pytest.raises(ValueError, match="together"):
         make_results(**kw)
