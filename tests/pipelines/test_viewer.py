@@ -253,3 +253,59 @@ def test_bad_arguments_name_the_parameter(tmp_path: Path) -> None:
     junk.write_bytes(b"not a recording")
     with pytest.raises(ValueError, match=r"junk\.rrd"):
         rrd_entities(junk)
+
+
+def _blueprint_views(path: Path) -> list[tuple[str, str, list[str]]]:
+    """(class, origin, content queries with $origin expanded) of each blueprint view."""
+    reader = RrdReader(path)
+    views: dict[str, dict[str, Any]] = {}
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        if not chunk.entity_path.startswith("/view/"):
+            continue
+        view = views.setdefault(chunk.entity_path.split("/")[2], {})
+        rb = chunk.to_record_batch()
+        for name, key in (
+            ("ViewBlueprint:class_identifier", "class"),
+            ("ViewBlueprint:space_origin", "origin"),
+            ("ViewContents:query", "query"),
+        ):
+            if name in rb.schema.names:
+                view[key] = rb.column(name).to_pylist()[-1]
+    return [
+        (v["class"][0], v["origin"][0], [q.replace("$origin", v["origin"][0]) for q in v["query"]])
+        for v in views.values()
+    ]
+
+
+def _matches(query: str, entity: str) -> bool:
+    if query.endswith("/**"):
+        base = query[:-3]
+        return entity == base or entity.startswith(base.rstrip("/") + "/")
+    return entity == query
+
+
+def test_the_blueprint_lays_out_every_logged_entity(tmp_path: Path) -> None:
+    path = tmp_path / "full.rrd"
+    overlay = FrameOverlay(
+        centreline_px=[[1.0, 2.0], [3.0, 4.0]],
+        hub_line_px=[[1.0, 2.0], [2.0, 3.0]],
+        rigid_line_px=[[1.0, 2.0], [5.0, 6.0]],
+        sim_beam_px=[[1.0, 2.0], [3.0, 4.5]],
+        tip_px=[3.0, 4.0],
+    )
+    with open_viewer("beambench-test", rrd_path=path) as viewer:
+        viewer.log_results(_results())
+        viewer.log_frame(0.5, _png(), "png", overlay)
+        viewer.log_frame(0.6, _png(), "png", FrameOverlay(ok=False, reason="blurred"))
+        viewer.log_events([Event(0, 2, "start", "")])
+    views = _blueprint_views(path)
+    classes = sorted(c for c, _, _ in views)
+    assert classes == ["2D", "2D", "TextDocument", "TextLog"] + ["TimeSeries"] * 6
+    assert {o for c, o, _ in views if c == "2D"} == {"/camera", "/fig11"}
+    logged = [k for k in rrd_entities(path) if not k.startswith("/__")]
+    assert len(logged) == 24  # 5 daq, 5 sim, 2 tip, image + 5 overlays, 3 fig11, 3 text
+    orphans = [e for e in logged if not any(_matches(q, e) for _, _, qs in views for q in qs)]
+    assert not orphans, f"logged but in no view: {orphans}"
+    # Each gauge's panel shows its measured and simulated strain together.
+    strain_panels = [qs for c, _, qs in views if c == "TimeSeries" and "/daq/strain/g2" in qs]
+    assert strain_panels == [["/daq/strain/g2", "/sim/strain/g2"]]
