@@ -179,3 +179,38 @@ def test_hardware_backend_without_nidaqmx_suggests_the_fake(
     err = capsys.readouterr().err
     assert code == 2 and "--backend fake" in err and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_log_passes_rerun_mcap_tools_and_images_decode(tmp_path: Path) -> None:
+    """design.md: /camera/image must be decoded as an image by Rerun's MCAP importer."""
+    import subprocess
+    import sys
+
+    rerun = Path(sys.executable).parent / "rerun"
+    if not rerun.exists():
+        pytest.skip("rerun CLI not installed next to the interpreter")
+    out = tmp_path / "run.mcap"
+    capture_run(RIG, make_daq(), make_camera(), out, 1.0, realtime=False)
+    check = subprocess.run(
+        [str(rerun), "mcap", "check", str(out)], capture_output=True, text=True, timeout=60
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+    for topic in ("/daq/samples", "/camera/image", "/events"):
+        assert any(
+            line.split()[:1] == ["ok"] and topic in line for line in check.stdout.splitlines()
+        ), check.stdout
+    rrd = tmp_path / "run.rrd"
+    subprocess.run(
+        [str(rerun), "mcap", "convert", str(out), "-o", str(rrd)],
+        check=True,
+        capture_output=True,
+        timeout=60,
+    )
+    printed = subprocess.run(
+        [str(rerun), "rrd", "print", "-v", str(rrd)],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    ).stdout
+    assert "/camera/image@EncodedImage:blob" in printed
