@@ -13,16 +13,20 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from daq.errors import LogError
-from daq.log import RunLog, iter_frames, read_run
-from daq.records import Frame
 from pipelines.commands._viewer_args import add_viewer_arguments
 from pipelines.errors import BeambenchError
-from pipelines.progress import Progress
-from pipelines.viewer import RunViewer, open_viewer
+
+if TYPE_CHECKING:
+    # rerun, xarray and mcap take seconds to import: only when replay runs, not for
+    # every ``beambench`` invocation (the CLI imports every command module).
+    from daq.log import RunLog
+    from daq.records import Frame
+    from pipelines.progress import Progress
+    from pipelines.viewer import RunViewer
 
 HELP = "stream a raw run log to Rerun without processing"
 
@@ -92,6 +96,9 @@ def replay_log(
     daq.errors.LogError
         The log is missing, truncated or not a beambench log.
     """
+    from daq.log import iter_frames, read_run
+    from pipelines.progress import Progress
+
     run = read_run(log_path)
     s = run.samples
     t0_ns = int(s.t_ns[0]) if len(s) else min((e.t_ns for e in run.events), default=0)
@@ -170,6 +177,9 @@ def _default_rrd(log_path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from daq.errors import LogError
+    from pipelines.viewer import open_viewer
+
     log_path = Path(args.log)
     speed = parse_speed(args.speed)
     if not log_path.is_file():
