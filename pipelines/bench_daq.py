@@ -192,6 +192,10 @@ def run(quick: bool = False) -> int:
             f"{fast.wall_time_s:.2f} s wall, {fast.log_bytes / 1e6 / fast.wall_time_s:.0f} "
             f"MB/s, {n_msgs / fast.wall_time_s:,.0f} messages/s |"
         )
+        print(
+            f"| CPU time of that write | {fast.cpu_time_s:.2f} s "
+            f"({fast.log_bytes / 1e6 / fast.cpu_time_s:.0f} MB per CPU second) |"
+        )
         print(f"| log size per bench minute | {fast.log_bytes / 1e6 * 60 / fast_s:.0f} MB |")
         n_read, t_read = _replay(tmp / "fast.mcap")
         print(
