@@ -254,6 +254,11 @@ class LogWriter:
             self._file.close()
 
     @property
+    def last_log_time_ns(self) -> int | None:
+        """Latest log time written so far (flushed or not), ns."""
+        return self._max_log_time_ns
+
+    @property
     def closed(self) -> bool:
         return self._closed
 

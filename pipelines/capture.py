@@ -342,7 +342,7 @@ def capture_run(
 
 
 def _last_time(writer: LogWriter) -> int:
-    return writer.last_flushed_log_time_ns or 0
+    return writer.last_log_time_ns or 0
 
 
 def _close_after_failure(writer: LogWriter) -> None:
