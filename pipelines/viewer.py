@@ -37,7 +37,6 @@ from typing import Any, Protocol
 
 import numpy as np
 import rerun as rr
-import rerun.blueprint as rrb
 import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
@@ -48,20 +47,22 @@ from pipelines.results import (
     steady_state_mask,
     summarise_errors,
 )
+from pipelines.viewer_layout import (
+    COLOUR_CENTRELINE,
+    COLOUR_HUB,
+    COLOUR_MEASURED,
+    COLOUR_RIGID,
+    COLOUR_SIM,
+    COLOUR_STRAIN,
+    COLOUR_TIP,
+    build_blueprint,
+    gauge_entity,
+)
+from pipelines.viewer_rrd import RrdEntity, rrd_entities
 
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
-
-N_GAUGES_IN_LAYOUT = 4  # the bench has four gauges; the blueprint shows one panel each
-
-COLOUR_MEASURED = (31, 119, 180)
-COLOUR_STRAIN = (255, 127, 14)
-COLOUR_SIM = (44, 160, 44)
-COLOUR_HUB = (214, 39, 40)
-COLOUR_RIGID = (148, 103, 189)
-COLOUR_CENTRELINE = (23, 190, 207)
-COLOUR_TIP = (255, 221, 0)
 
 _URL_SCHEMES = ("rerun://", "rerun+http://", "rerun+https://")
 _MEDIA_TYPES = {"jpeg": "image/jpeg", "jpg": "image/jpeg", "png": "image/png"}
@@ -143,53 +144,6 @@ def _time_column(t_s: FloatArray) -> rr.TimeColumn:
     # Rounded to whole ns here: rerun's own float conversion truncates (0.0025 s -> 2499999 ns).
     ns = np.round(t_s * 1e9).astype(np.int64).astype("timedelta64[ns]")
     return rr.TimeColumn("time", duration=ns)
-
-
-def _gauge_entity(prefix: str, j: int) -> str:
-    return f"{prefix}/g{j + 1}"
-
-
-def build_blueprint(n_gauges: int = N_GAUGES_IN_LAYOUT) -> rrb.Blueprint:
-    """The layout: camera with overlays and the event log on the left; rocker angle,
-    one strain panel per gauge (measured and simulated) and tip deflection in the
-    middle; the Fig. 11 view on the right."""
-    strain_views = [
-        rrb.TimeSeriesView(
-            name=f"strain g{j + 1}",
-            origin="/",
-            contents=[_gauge_entity("/daq/strain", j), _gauge_entity("/sim/strain", j)],
-        )
-        for j in range(n_gauges)
-    ]
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                rrb.Spatial2DView(name="camera", origin="/camera"),
-                rrb.Tabs(
-                    rrb.TextLogView(name="events", origin="/events"),
-                    rrb.TextDocumentView(name="error summary", origin="/summary"),
-                ),
-                row_shares=[3, 1],
-            ),
-            rrb.Vertical(
-                rrb.TimeSeriesView(
-                    name="rocker angle (rad)", origin="/", contents=["/daq/rocker_angle"]
-                ),
-                rrb.Grid(*strain_views),
-                rrb.TimeSeriesView(
-                    name="tip lateral (m)",
-                    origin="/",
-                    contents=["/tip_lateral/**", "/sim/tip_lateral"],
-                ),
-                row_shares=[1, 2, 1],
-            ),
-            rrb.Spatial2DView(
-                name="Fig. 11: tip lateral (mm, up +) vs hub angle (deg)", origin="/fig11"
-            ),
-            column_shares=[2, 2, 1],
-        ),
-        collapse_panels=True,
-    )
 
 
 class RunViewer:
@@ -309,7 +263,7 @@ class RunViewer:
         self._send_scalars("/daq/rocker_angle", t, rocker, "rocker angle", COLOUR_MEASURED)
         for j in range(eps.shape[1]):
             self._send_scalars(
-                _gauge_entity("/daq/strain", j), t, eps[:, j], f"g{j + 1} measured", COLOUR_MEASURED
+                gauge_entity("/daq/strain", j), t, eps[:, j], f"g{j + 1} measured", COLOUR_MEASURED
             )
 
     def log_sim(self, t_s: ArrayLike, tip_lateral_m: ArrayLike, strain: ArrayLike) -> None:
@@ -329,7 +283,7 @@ class RunViewer:
         self._send_scalars("/sim/tip_lateral", t, tip, "simulated", COLOUR_SIM)
         for j in range(eps.shape[1]):
             self._send_scalars(
-                _gauge_entity("/sim/strain", j), t, eps[:, j], f"g{j + 1} simulated", COLOUR_SIM
+                gauge_entity("/sim/strain", j), t, eps[:, j], f"g{j + 1} simulated", COLOUR_SIM
             )
 
     def log_frame(
@@ -616,50 +570,12 @@ def open_viewer(
     return RunViewer(rec)
 
 
-@dataclass(frozen=True)
-class RrdEntity:
-    """What one entity of a ``.rrd`` holds: rows over time, static rows, components."""
-
-    rows: int
-    static_rows: int
-    components: frozenset[str]
-    timelines: frozenset[str]
-
-
-def rrd_entities(path: str | os.PathLike[str]) -> dict[str, RrdEntity]:
-    """Summarise the recording in a ``.rrd`` file: entity path -> :class:`RrdEntity`.
-
-    Component names are ``Archetype:field`` (e.g. ``Scalars:scalars``,
-    ``EncodedImage:blob``). Raises ValueError naming the file when it is not a
-    readable recording.
-    """
-    from rerun.chunk import RrdReader
-
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{p}: no such .rrd file")
-    acc: dict[str, dict[str, Any]] = {}
-    try:
-        for chunk in RrdReader(p).stream():
-            entry = acc.setdefault(
-                chunk.entity_path,
-                {"rows": 0, "static": 0, "components": set(), "timelines": set()},
-            )
-            if chunk.is_static:
-                entry["static"] += chunk.num_rows
-            else:
-                entry["rows"] += chunk.num_rows
-            entry["timelines"].update(chunk.timeline_names)
-            names = chunk.to_record_batch().schema.names
-            entry["components"].update(n for n in names if ":" in n)
-    except (OSError, ValueError, RuntimeError) as exc:
-        raise ValueError(f"{p}: not a readable Rerun recording ({exc})") from None
-    return {
-        k: RrdEntity(
-            rows=v["rows"],
-            static_rows=v["static"],
-            components=frozenset(v["components"]),
-            timelines=frozenset(v["timelines"]),
-        )
-        for k, v in acc.items()
-    }
+__all__ = [
+    "EventLike",
+    "FrameOverlay",
+    "RrdEntity",
+    "RunViewer",
+    "build_blueprint",
+    "open_viewer",
+    "rrd_entities",
+]
