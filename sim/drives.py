@@ -207,3 +207,19 @@ class SpinUpDrive:
         return np.where(
             inside, (w / ts) * (1.0 - np.cos(2.0 * np.pi * np.clip(t, 0.0, ts) / ts)), 0.0
         )
+
+
+@dataclass(frozen=True)
+class FixedDrive:
+    """A hub held still at ``angle_rad`` (free decay, statics)."""
+
+    angle_rad: float = 0.0
+
+    def angle(self, t_s: ArrayLike) -> FloatArray:
+        return np.full(np.shape(t_s), self.angle_rad, dtype=float)
+
+    def rate(self, t_s: ArrayLike) -> FloatArray:
+        return np.zeros(np.shape(t_s))
+
+    def accel(self, t_s: ArrayLike) -> FloatArray:
+        return np.zeros(np.shape(t_s))

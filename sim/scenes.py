@@ -26,7 +26,7 @@ from sim.damping import (
     log_decrement,
     modal_damping_ratio,
 )
-from sim.drives import Drive, FourBarDrive, SinusoidDrive, SpinUpDrive
+from sim.drives import Drive, FixedDrive, FourBarDrive, SinusoidDrive, SpinUpDrive
 from sim.falling_body import STANDARD_GRAVITY_M_S2, FallingBody
 from sim.four_bar import (
     PAPER_CRANK_AT_MAX_RAD,
@@ -54,22 +54,6 @@ class ModelNotAvailable(RuntimeError):
 class SceneRun:
     result: SimResult
     extras: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class Stationary:
-    """A hub held still (free decay)."""
-
-    angle_value_rad: float = 0.0
-
-    def angle(self, t_s: Any) -> FloatArray:
-        return np.full(np.shape(t_s), self.angle_value_rad, dtype=float)
-
-    def rate(self, t_s: Any) -> FloatArray:
-        return np.zeros(np.shape(t_s))
-
-    def accel(self, t_s: Any) -> FloatArray:
-        return np.zeros(np.shape(t_s))
 
 
 def _external(module: str, name: str) -> Callable[..., SimResult]:
@@ -201,7 +185,7 @@ def static(
     elif model == "auto":
         res = solve_static_elastica(props, force, gauge_positions_m=gauge_positions_m)
     elif model == "rigid":
-        res = simulate_rigid(props, Stationary(), np.zeros(1), gauge_positions_m=gauge_positions_m)
+        res = simulate_rigid(props, FixedDrive(), np.zeros(1), gauge_positions_m=gauge_positions_m)
     else:
         raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
     linear = force * props.length_m**3 / (3.0 * props.bending_stiffness_n_m2)
@@ -247,7 +231,7 @@ def free_decay(
     mi = ModalModel.build(props, n_modes).integrals
     q0 = np.linalg.solve(mi.stiffness, -force * mi.tip_shape)
     t = _times(duration_s, output_rate_hz)
-    hub = Stationary()
+    hub = FixedDrive()
 
     def run(a0_: float, a1_: float) -> SimResult:
         return simulate_modal(
@@ -336,7 +320,7 @@ def falling_body(
     model = ModalModel.build(props, n_modes)
     res = modal_result(
         model,
-        Stationary(),
+        FixedDrive(),
         t,
         eta,
         gauges,

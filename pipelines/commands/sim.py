@@ -14,7 +14,9 @@ from pipelines.errors import BeambenchError
 from pipelines.rig import Rig
 from pipelines.sim_output import check_output_path, modes_dataset, sim_dataset, write_dataset
 from sim import scenes
+from sim.beam import BeamProperties
 from sim.ltv import SolverError
+from sim.statics import table2_comparison
 
 HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-body, modes, linkage)"
 
@@ -96,6 +98,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="free-decay: identify a0 = a1 reproducing this measured decrement",
     )
     p.add_argument("--json", action="store_true", help="linkage: print JSON")
+    p.add_argument(
+        "--table2",
+        action="store_true",
+        help="static: print the paper's Table 2 beside linear theory and the elastica",
+    )
 
 
 def _positive(name: str, value: float | None) -> None:
@@ -201,6 +208,21 @@ def _print_linkage(info: dict[str, Any], as_json: bool) -> None:
     )
 
 
+def _print_table2(rig: Rig) -> None:
+    rows = table2_comparison(BeamProperties.from_config(rig.beam), rig.gauges.positions_m)
+    print(
+        "Table 2 tip deflection (mm): paper measured / paper theoretical / FLXDYN | "
+        "PL^3/3EI / elastica | paper theory mm per kg, implied mass kg"
+    )
+    for r in rows:
+        print(
+            f"{r['mass_kg']:.3f} kg: {r['measured_tip_mm']:.2f} / "
+            f"{r['paper_theoretical_tip_mm']:.2f} / {r['flxdyn_tip_mm']:.2f} | "
+            f"{r['linear_tip_mm']:.2f} / {r['elastica_tip_mm']:.2f} | "
+            f"{r['paper_theoretical_mm_per_kg']:.1f}, {r['implied_mass_kg']:.4f}"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     rig = rig_from_args(args)
     _check(args)
@@ -212,6 +234,10 @@ def run(args: argparse.Namespace) -> int:
     if args.scene == "linkage":
         _print_linkage(scenes.linkage(rig.linkage), args.json)
         return 0
+    if args.table2:
+        if args.scene != "static":
+            raise BeambenchError("--table2 applies to the static scene only")
+        _print_table2(rig)
     try:
         if args.scene == "modes":
             info = scenes.modes(rig.beam, **({"n_modes": args.n_modes} if args.n_modes else {}))

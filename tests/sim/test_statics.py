@@ -17,6 +17,7 @@ from sim.statics import (
     solve_static_elastica,
     solve_static_linear,
     solve_static_modal,
+    table2_comparison,
 )
 
 BEAM = BeamProperties.from_config(BeamConfig())
@@ -90,3 +91,16 @@ def test_elastica_is_about_one_percent_below_linear_at_0149_kg_and_linear_for_sm
 def test_negative_load_is_refused() -> None:
     with pytest.raises(ValueError, match="tip_force_n"):
         solve_static_linear(BEAM, -1.0)
+
+
+def test_paper_table2_is_not_self_consistent() -> None:
+    rows = table2_comparison(BEAM, GAUGES)
+    per_kg = [r["paper_theoretical_mm_per_kg"] for r in rows]
+    assert max(per_kg) - min(per_kg) > 5.0  # "PL^3/3EI" that is not linear in P
+    linear_per_kg = [r["linear_tip_mm"] / r["mass_kg"] for r in rows]
+    assert np.ptp(linear_per_kg) < 1e-9
+    for r in rows:
+        assert r["elastica_tip_mm"] < r["linear_tip_mm"]
+        assert r["implied_mass_kg"] < r["mass_kg"]
+    # FLXDYN above linear theory at the smallest load: not a converged nonlinear model
+    assert rows[0]["flxdyn_tip_mm"] > rows[0]["linear_tip_mm"]
