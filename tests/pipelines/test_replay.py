@@ -152,3 +152,20 @@ def test_parse_speed() -> None:
     for bad in ("0", "nan", "inf", "x"):
         with pytest.raises(Exception, match="--speed"):
             parse_speed(bad)
+
+
+def test_replay_of_a_daq_only_log(tmp_path: Path) -> None:
+    path = tmp_path / "daq_only.mcap"
+    t_ns = np.arange(40, dtype=np.int64) * 2_500_000
+    zeros = np.zeros(40)
+    with LogWriter(path, rig_json=Rig().to_json(), run_info={"run_id": "daq"}) as w:
+        w.write_samples(
+            SampleBlock(t_ns, zeros, np.zeros((40, 4)), np.zeros((40, 5)), first_sequence=0)
+        )
+    out = tmp_path / "daq_only.rrd"
+    with open_viewer("beambench-test", rrd_path=out) as viewer:
+        summary = replay_log(path, viewer, speed=100.0, sleep=lambda s: None)
+    assert (summary.samples, summary.frames, summary.events) == (40, 0, 0)
+    e = rrd_entities(out)
+    assert e["/daq/rocker_angle"].rows == 40
+    assert "/camera/image" not in e and "/events" not in e
