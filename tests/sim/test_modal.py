@@ -18,10 +18,11 @@ BEAM = BeamProperties.from_config(BeamConfig())
 GAUGES = [0.005, 0.204, 0.403, 0.603]
 
 
-def test_energy_balance_with_damping_off_on_the_reciprocating_scene() -> None:
+@pytest.mark.parametrize("tip_mass_kg", [0.0, 0.05])
+def test_energy_balance_with_damping_off_on_the_reciprocating_scene(tip_mass_kg: float) -> None:
     """Work done by the hub torque = change of kinetic + strain energy."""
     drive = SinusoidDrive()
-    model = ModalModel.build(BEAM, 4)
+    model = ModalModel.build(BEAM, 4, tip_mass_kg=tip_mass_kg)
     t = np.linspace(0.0, 2.0, 8001)
     q, qd, _ = integrate_modal(model, drive, t, rtol=1e-10, atol=1e-15)
     qdd = model.accelerations(drive, t, q, qd)
@@ -32,7 +33,7 @@ def test_energy_balance_with_damping_off_on_the_reciprocating_scene() -> None:
     assert np.abs(elastic_part).max() > 1e-3  # the beam does carry energy
     assert np.abs(work - (energy - energy[0])).max() < 1e-7 * np.abs(energy).max()
     # a sign error in the stiffening term would break the balance
-    wrong = ModalModel.build(BEAM, 4)
+    wrong = ModalModel.build(BEAM, 4, tip_mass_kg=tip_mass_kg)
     object.__setattr__(wrong.integrals, "centrifugal", -wrong.integrals.centrifugal)
     q2, qd2, _ = integrate_modal(wrong, drive, t, rtol=1e-10, atol=1e-15)
     e2 = model.kinetic_energy_j(drive, t, q2, qd2) + model.strain_energy_j(q2)
