@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from types import TracebackType
 
@@ -273,6 +274,10 @@ class FakeCamera:
     clock : Clock
     realtime : bool
     faults : CameraFaults
+    render_workers : int
+        0 renders each frame when it is read. ``n > 0`` renders up to ``2 n`` frames ahead
+        in ``n`` worker threads (their exposure times are known in advance), so a slow
+        renderer can keep real time; ``render_fn`` must then be thread-safe.
     """
 
     backend = "fake"
@@ -294,9 +299,12 @@ class FakeCamera:
         clock: Clock | None = None,
         realtime: bool = False,
         faults: CameraFaults | None = None,
+        render_workers: int = 0,
     ) -> None:
         if not callable(render_fn):
             raise TypeError("render_fn must be callable: (t_start_s, exposure_s) -> bytes")
+        if not isinstance(render_workers, int) or render_workers < 0:
+            raise ValueError(f"render_workers must be an integer >= 0, got {render_workers!r}")
         if encoding not in ("jpeg", "png"):
             raise ValueError(f"encoding must be 'jpeg' or 'png', got {encoding!r}")
         if not frame_rate_hz > 0:
@@ -322,6 +330,9 @@ class FakeCamera:
         self.realtime = bool(realtime)
         self.faults = faults or CameraFaults()
         self._clock: Clock = clock or MonotonicClock()
+        self.render_workers = render_workers
+        self._pool: ThreadPoolExecutor | None = None
+        self._ahead: dict[int, Future[bytes]] = {}
         self._started = False
         self._start_wall_ns = 0
         self._next = 0
@@ -357,10 +368,31 @@ class FakeCamera:
     def start(self) -> None:
         self._started = True
         self._next = 0
+        if self.render_workers and self._pool is None:
+            self._pool = ThreadPoolExecutor(self.render_workers, "fake-camera-render")
         self._start_wall_ns = self._clock.now_ns()
 
     def stop(self) -> None:
         self._started = False
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+        self._ahead.clear()
+
+    def _render_ahead(self, k: int) -> None:
+        assert self._pool is not None
+        for old in [j for j in self._ahead if j < k]:
+            self._ahead.pop(old).cancel()
+        for j in range(k, k + 2 * self.render_workers):
+            if j not in self._ahead:
+                t = self.true_exposure_start_s(j)
+                self._ahead[j] = self._pool.submit(self._render_fn, t, self.exposure_s)
+
+    def _render(self, k: int) -> bytes:
+        if self._pool is None:
+            return self._render_fn(self.true_exposure_start_s(k), self.exposure_s)
+        self._render_ahead(k)
+        return self._ahead.pop(k).result()
 
     def __enter__(self) -> FakeCamera:
         self.start()
@@ -392,13 +424,15 @@ class FakeCamera:
                 # the camera's buffer holds one frame: everything older is overwritten
                 while self._available_s(k + 1) <= now_s:
                     k += 1
+            if self._pool is not None:
+                self._render_ahead(k)  # render while waiting for the exposure
             wait = self._available_s(k) - now_s
             if wait > timeout_s:
                 self._clock.sleep_s(timeout_s)
                 raise DeviceTimeoutError("FakeCamera", timeout_s)
             self._clock.sleep_s(wait)
         self._next = k + 1
-        data = self._render_fn(self.true_exposure_start_s(k), self.exposure_s)
+        data = self._render(k)
         if not isinstance(data, bytes | bytearray):
             raise TypeError(f"render_fn must return encoded bytes, got {type(data).__name__}")
         return Frame(self.stamp_ns(k), k, bytes(data), self.encoding, self.width_px, self.height_px)

@@ -11,6 +11,7 @@ a write failure leaves what was flushed recoverable.
 from __future__ import annotations
 
 import logging
+import math
 import os
 import queue
 import threading
@@ -79,6 +80,7 @@ class _CameraReader(threading.Thread):
         self.camera = camera
         self.end_ns = end_ns
         self.realtime = realtime
+        self.period_s = period_s
         self.timeout_s = max(1.0, 3.0 * period_s)
         self.out: queue.Queue[Frame | Event | None] = queue.Queue(maxsize=32)
         self.stop_flag = threading.Event()
@@ -112,11 +114,15 @@ class _CameraReader(threading.Thread):
 
     def _check_sequence(self, frame: Frame) -> None:
         missing = frame.sequence - self.next_sequence
+        if frame.t_ns >= self.end_ns and missing > 0:
+            # the frame that ends the run: count only the skipped frames due before the end
+            before_end = (self.end_ns - frame.t_ns) / (self.period_s * 1e9) + missing
+            missing = max(0, min(missing, math.ceil(before_end)))
         if missing > 0:
             self.dropped_frames += missing
             self._put(
                 Event(
-                    frame.t_ns,
+                    min(frame.t_ns, self.end_ns),
                     "warning",
                     "dropped_frames",
                     f"{missing} frames missing before frame {frame.sequence}",
@@ -142,9 +148,11 @@ class _CameraReader(threading.Thread):
                     self._put(Event(self.now_ns, "error", "device_error", f"camera: {exc}"))
                     break
                 timeouts = 0
-                if frame is None or frame.t_ns >= self.end_ns:
+                if frame is None:
                     break
                 self._check_sequence(frame)
+                if frame.t_ns >= self.end_ns:
+                    break
                 self._put(frame)
         except BaseException as exc:  # handed to the main thread, which re-raises it
             self.failure = exc

@@ -188,3 +188,28 @@ def test_camera_faults_and_realtime_losses() -> None:
     clock.advance_s(1.0)  # a slow reader: the camera overwrote the frames in between
     f1 = cam.read_frame(1.0)
     assert f1 is not None and f1.sequence > 10
+
+
+def test_rendering_ahead_in_workers_gives_the_same_frames() -> None:
+    """Worker threads render ahead (exposure times are known): same frames, same order."""
+
+    def render(t_start_s: float, exposure_s: float) -> bytes:
+        return f"{t_start_s:.9f}/{exposure_s}".encode()
+
+    kw = dict(
+        render_fn=render,
+        width_px=8,
+        height_px=8,
+        frame_rate_hz=15.0,
+        clock_drift_ppm=30.0,
+        faults=CameraFaults(drop_frames=(3,)),
+    )
+    plain = FakeCamera(**kw)  # type: ignore[arg-type]
+    ahead = FakeCamera(**kw, render_workers=2)  # type: ignore[arg-type]
+    with plain, ahead:
+        a = [plain.read_frame(1.0) for _ in range(20)]
+        b = [ahead.read_frame(1.0) for _ in range(20)]
+    assert a == b
+    assert ahead._pool is None  # workers shut down on stop
+    with pytest.raises(ValueError, match="render_workers"):
+        FakeCamera(**kw, render_workers=-1)  # type: ignore[arg-type]

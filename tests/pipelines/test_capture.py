@@ -214,3 +214,35 @@ def test_log_passes_rerun_mcap_tools_and_images_decode(tmp_path: Path) -> None:
         timeout=60,
     ).stdout
     assert "/camera/image@EncodedImage:blob" in printed
+
+
+def test_slow_renderer_drops_frames_honestly_unless_rendered_ahead(tmp_path: Path) -> None:
+    """A renderer slower than the frame period loses frames in real time (and says so);
+    rendering ahead in two workers keeps up."""
+    import time
+
+    def slow(t_start_s: float, exposure_s: float) -> bytes:
+        time.sleep(0.1)  # 1.5 frame periods at 15 frames/s
+        return JPEG
+
+    late = capture_run(
+        RIG,
+        make_daq(realtime=True),
+        make_camera(render_fn=slow, realtime=True),
+        tmp_path / "late.mcap",
+        1.0,
+        realtime=True,
+    )
+    assert late.dropped_frames > 0
+    assert late.frames + late.dropped_frames == 15
+    events = [e for e in read_run(tmp_path / "late.mcap").events if e.name == "dropped_frames"]
+    assert events
+    ahead = capture_run(
+        RIG,
+        make_daq(realtime=True),
+        make_camera(render_fn=slow, realtime=True, render_workers=2),
+        tmp_path / "ahead.mcap",
+        1.0,
+        realtime=True,
+    )
+    assert (ahead.frames, ahead.dropped_frames, ahead.dropped_samples) == (15, 0, 0)
