@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
-import sys
 from typing import Any
 
 from pipelines.commands._common import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
+from pipelines.progress import Progress
 from pipelines.rig import Rig
 
 HELP = "record a run (DAQ + camera) to a synchronized MCAP log"
@@ -60,16 +60,6 @@ def hardware_devices(rig: Rig) -> tuple[Any, Any, dict[str, Any]]:
     return daq_device, camera, camera_info_from_rig(rig)
 
 
-def _progress_bar(done_s: float, total_s: float) -> None:
-    width = 30
-    frac = min(1.0, done_s / total_s)
-    bar = "#" * round(frac * width)
-    sys.stderr.write(f"\rcapture [{bar:<{width}}] {done_s:7.1f}/{total_s:.1f} s")
-    if frac >= 1.0:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
-
-
 def run(args: argparse.Namespace) -> int:
     from pipelines.capture import capture_run
 
@@ -98,17 +88,21 @@ def run(args: argparse.Namespace) -> int:
             ) from None
     else:
         daq_device, camera, camera_info = hardware_devices(rig)
-    progress = _progress_bar if sys.stderr.isatty() else None
-    s = capture_run(
-        rig,
-        daq_device,
-        camera,
-        args.out,
-        args.duration,
-        realtime=args.realtime or args.backend == "hardware",
-        camera_info=camera_info,
-        progress=progress,
-    )
+    with Progress("capture", total=args.duration) as bar:
+
+        def progress(done_s: float, total_s: float) -> None:
+            bar.update(done_s - bar.done)
+
+        s = capture_run(
+            rig,
+            daq_device,
+            camera,
+            args.out,
+            args.duration,
+            realtime=args.realtime or args.backend == "hardware",
+            camera_info=camera_info,
+            progress=progress if bar.enabled else None,
+        )
     print(f"wrote {s.out_path} ({s.log_bytes / 1e6:.2f} MB), run {s.run_id}")
     print(
         f"  {s.samples} samples at {rig.daq.output_rate_hz:g} Hz (acquired at "
