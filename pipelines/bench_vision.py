@@ -45,7 +45,7 @@ def _shape(rng: np.random.Generator, hub_rad: float, tip_max_m: float) -> BeamPo
     return BeamPose.from_slope(hub_rad, L_M, slope)
 
 
-def _spec(rng: np.random.Generator, hard: bool, seed: int) -> SceneSpec:
+def _spec(rng: np.random.Generator, hard: bool, seed: int, hub_deg: float) -> SceneSpec:
     reg = RegistrationConfig()
     if not hard:
         pose = CameraPoseConfig(tilt_rad=math.radians(rng.uniform(10, 20)))
@@ -60,19 +60,10 @@ def _spec(rng: np.random.Generator, hard: bool, seed: int) -> SceneSpec:
             seed=seed,
         )
     tilt = math.radians(rng.uniform(30, 45))
-    az = rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2]) + rng.uniform(-0.3, 0.3)
-    pose = CameraPoseConfig(distance_m=1.75, tilt_rad=tilt, tilt_azimuth_rad=float(az))
+    az = float(rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2]) + rng.uniform(-0.3, 0.3))
     k1 = float(rng.choice([-0.1, 0.1]))
     cam = CameraConfig(distortion=(k1, 0.0, 0.0, 0.0, 0.0))
-    clutter = tuple(
-        Clutter(
-            (float(rng.uniform(-0.5, 0.8)), float(rng.uniform(-0.9, -0.2))),
-            (float(rng.uniform(0.03, 0.12)), float(rng.uniform(0.01, 0.05))),
-            float(rng.uniform(0, np.pi)),
-            float(rng.uniform(120, 250)),
-        )
-        for _ in range(6)
-    )
+    pose = _framing(cam, reg, tilt, az, hub_deg)
     low = rng.random() < 0.5
     return SceneSpec.from_rig(
         cam,
@@ -88,8 +79,71 @@ def _spec(rng: np.random.Generator, hard: bool, seed: int) -> SceneSpec:
         background_dn=70.0 if low else 40.0,
         beam_dn=130.0 if low else 215.0,
         hub_dn=120.0 if low else 190.0,
-        clutter=clutter,
+        clutter=_clutter_near_beam(rng, hub_deg),
     )
+
+
+def _framing(
+    cam: CameraConfig, reg: RegistrationConfig, tilt: float, az: float, hub_deg: float
+) -> CameraPoseConfig:
+    """The closest oblique view that shows the hub, the beam at this stroke end (with
+    80 mm deflection either way) and the registration plate, at 0.85-1.3 mm/px at the tip."""
+    th = math.radians(hub_deg)
+    e = np.array([math.cos(th), math.sin(th)])
+    n = np.array([-e[1], e[0]])
+    tip = 0.843 * e
+    h = reg.plate_side_m / 2
+    keep = [tip + 0.09 * n, tip - 0.09 * n, -0.2 * e + 0.03 * n, -0.2 * e - 0.03 * n]
+    keep += [
+        np.asarray(reg.center_m) + np.array([sx * h, sy * h]) for sx in (-1, 1) for sy in (-1, 1)
+    ]
+    pts = np.array(keep)
+    target = tuple(float(v) for v in 0.5 * (pts.min(axis=0) + pts.max(axis=0)))
+    best = None
+    for dist in np.arange(1.0, 3.0, 0.05):
+        pose = CameraPoseConfig(
+            distance_m=float(dist), target_m=target, tilt_rad=tilt, tilt_azimuth_rad=az
+        )
+        spec = SceneSpec.from_rig(
+            cam, pose, reg, beam_length_m=L_M, beam_width_m=W_M, hub_offset_m=0.008
+        )
+        try:
+            px = spec.plane_to_image_px(pts)
+            tip_px = spec.plane_to_image_px(np.array([tip, tip + 0.001 * n]))
+        except ValueError:
+            continue
+        inside = np.all(px > 30) and np.all(px[:, 0] < cam.width_px - 30)
+        inside = inside and np.all(px[:, 1] < cam.height_px - 30)
+        mm_px = 1.0 / float(np.linalg.norm(tip_px[1] - tip_px[0]))
+        if inside and 0.85 <= mm_px <= 1.3:
+            return pose
+        if inside and best is None:
+            best = pose
+    return best if best is not None else CameraPoseConfig(tilt_rad=tilt, tilt_azimuth_rad=az)
+
+
+def _clutter_near_beam(rng: np.random.Generator, hub_deg: float) -> tuple[Clutter, ...]:
+    """Bright bars beside the beam (clear of its deflection envelope, up to 80 mm at the
+    tip) and a few farther away."""
+    th = math.radians(hub_deg)
+    e = np.array([math.cos(th), math.sin(th)])
+    n = np.array([-e[1], e[0]])
+    out = []
+    for k in range(6):
+        s = rng.uniform(0.15, 0.8)
+        side = 1.0 if k % 2 else -1.0
+        size = (float(rng.uniform(0.03, 0.1)), float(rng.uniform(0.01, 0.03)))
+        gap = 0.012 + 0.1 * (s / L_M) ** 1.5 + 0.5 * math.hypot(*size) + rng.uniform(0, 0.05)
+        centre = (0.008 + s) * e + side * gap * n
+        out.append(
+            Clutter(
+                (float(centre[0]), float(centre[1])),
+                size,
+                float(th + rng.uniform(-0.5, 0.5)),
+                float(rng.uniform(150, 250)),
+            )
+        )
+    return tuple(out)
 
 
 def _frames(kind: str, n: int, seed: int) -> tuple[list[Frame], list[float]]:
@@ -97,10 +151,11 @@ def _frames(kind: str, n: int, seed: int) -> tuple[list[Frame], list[float]]:
     frames, corner_err = [], []
     n_specs = 1 if kind == "nominal" else max(1, n // 3)
     for k in range(n_specs):
-        spec = _spec(rng, kind == "hard", seed + k)
+        end_deg = float(STROKE_DEG[k % 2])
+        spec = _spec(rng, kind == "hard", seed + k, end_deg)
         for _ in range(n // n_specs):
             if kind == "hard":
-                hub = math.radians(float(rng.choice(STROKE_DEG)) + rng.uniform(-2, 2))
+                hub = math.radians(end_deg + rng.uniform(-2, 2))
                 poses = [_shape(rng, hub, 0.080)]
             elif kind == "blur":
                 hub = math.radians(rng.uniform(265, 305))

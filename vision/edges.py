@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.sampling import edge_moment
+from vision.sampling import edge_gauss3, edge_moment
 
 
 @dataclass
@@ -33,6 +33,7 @@ def strip_edges(
     half_width_px: float,
     margin_px: int = 5,
     window: int = 2,
+    estimator: str = "moment",
 ) -> StripEdges:
     """Scan across a bright strip whose centre line is the polyline ``centre_px``
     ((M, 2) raw px, ordered along the strip, dense). ``half_width_px``: its half width
@@ -75,6 +76,10 @@ def strip_edges(
     pb = np.argmax(np.where(near_b, -diff, -np.inf), axis=1)
     ca, ka, sa = edge_moment(diff, pa, window)
     cb, kb, sb = edge_moment(-diff, pb, window)
+    if estimator == "gauss3":
+        ga, gb = edge_gauss3(diff, pa), edge_gauss3(-diff, pb)
+        ca = np.where(np.isfinite(ga), ga, ca)
+        cb = np.where(np.isfinite(gb), gb, cb)
     along_a = base + ca
     along_b = base + cb
     side_a = np.column_stack([lines.astype(np.float64), along_a])

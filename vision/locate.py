@@ -45,36 +45,36 @@ def find_strip(
 ) -> Strip | None:
     """The bright run (half-maximum crossings) nearest offset ``expect`` in a profile."""
     ok = np.isfinite(values)
-    if ok.sum() < 0.7 * len(values):
+    n = len(values)
+    if ok.sum() < 0.7 * n:
         return None
-    v = np.where(ok, values, np.nanmedian(values))
-    lo = float(np.percentile(v, 20))
-    hi = float(np.percentile(v, 98))
+    v = np.where(ok, values, np.nanmedian(values)) if not ok.all() else values
+    vs = np.sort(v)
+    lo = float(vs[int(0.2 * (n - 1))])
+    hi = float(vs[int(0.98 * (n - 1))])
     if hi - lo < 12.0:
         return None
     thr = 0.5 * (lo + hi)
-    above = v > thr
-    if not above.any():
+    above = (v > thr).astype(np.int8)
+    d = np.diff(above)
+    starts = np.flatnonzero(d == 1) + 1  # first sample above
+    ends = np.flatnonzero(d == -1)  # last sample above
+    if starts.size == 0 or ends.size == 0:
         return None
-    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
-    starts = [0] if above[0] else []
-    starts += [int(e) + 1 for e in edges if not above[e]]
-    best: Strip | None = None
-    for s0 in starts:
-        s1 = s0
-        while s1 + 1 < len(v) and above[s1 + 1]:
-            s1 += 1
-        if s0 == 0 or s1 == len(v) - 1:
-            continue
-        f0 = (thr - v[s0 - 1]) / (v[s0] - v[s0 - 1])
-        f1 = (v[s1] - thr) / (v[s1] - v[s1 + 1])
-        step = offsets[1] - offsets[0]
-        a = offsets[s0 - 1] + f0 * step
-        b = offsets[s1] + f1 * step
-        c = 0.5 * (a + b)
-        if best is None or abs(c - expect) < abs(best.centre - expect):
-            best = Strip(c, b - a, float(np.max(v[s0 : s1 + 1]) - lo))
-    return best
+    ends = ends[ends >= starts[0]]
+    m = min(starts.size, ends.size)
+    if m == 0:
+        return None
+    s0, s1 = starts[:m], ends[:m]
+    step = offsets[1] - offsets[0]
+    f0 = (thr - v[s0 - 1]) / (v[s0] - v[s0 - 1])
+    f1 = (v[s1] - thr) / (v[s1] - v[s1 + 1])
+    a = offsets[s0 - 1] + f0 * step
+    b = offsets[s1] + f1 * step
+    c = 0.5 * (a + b)
+    k = int(np.argmin(np.abs(c - expect)))
+    peak = float(np.max(v[s0[k] : s1[k] + 1]))
+    return Strip(float(c[k]), float(b[k] - a[k]), peak - lo)
 
 
 def profile(
@@ -147,8 +147,10 @@ def locate(
     p1 = r1 * np.array([np.cos(a1), np.sin(a1)])
     p2 = r2 * np.array([np.cos(a2), np.sin(a2)])
     d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
-    outward = _follow(image, to_px, p2, d0, beam_width, 3.0 * beam_width, beam_length * 0.7, px_m)
-    inward = _follow(image, to_px, p1, -d0, beam_width, 5.0 * beam_width, beam_length, px_m)
+    outward = _follow(
+        image, to_px, p2, d0, beam_width, 3.0 * beam_width, beam_length * 0.7, px_m, 2.5
+    )
+    inward = _follow(image, to_px, p1, -d0, beam_width, 5.0 * beam_width, beam_length, px_m, 0.8)
     pts_in, widths_in = inward
     wide = np.flatnonzero(widths_in > 1.35 * beam_width)
     if wide.size < 2:
@@ -167,7 +169,30 @@ def locate(
     hub_back = hub_pts[last - 1]
     beam_in = pts_in[:k0][::-1]
     beam = np.vstack([beam_in, p1[None, :], outward[0]])
-    return Rough(beam, clamp, hub_back, med, outward[0][-1] if len(outward[0]) else p2)
+    tip = _strip_end(image, to_px, beam, beam_width, px_m)
+    return Rough(beam, clamp, hub_back, med, tip)
+
+
+def _strip_end(
+    image: NDArray[np.uint8],
+    to_px: ToPx,
+    beam: NDArray[np.float64],
+    width: float,
+    px_m: float,
+) -> NDArray[np.float64]:
+    """Where the strip ends beyond the last tracked point (half-brightness crossing)."""
+    last = beam[-1]
+    d = last - beam[max(0, len(beam) - 3)]
+    d /= np.linalg.norm(d)
+    t = np.arange(-width, 4.0 * width, 0.5 * px_m)
+    v = bilinear(image, to_px(last[None, :] + t[:, None] * d[None, :]))
+    if not np.isfinite(v[0]):
+        return last
+    v = np.where(np.isfinite(v), v, np.nanmin(v))
+    thr = 0.5 * (v[: int(width / (0.5 * px_m))].mean() + np.min(v))
+    below = np.flatnonzero(v < thr)
+    below = below[below > 0]
+    return last + (t[below[0]] if below.size else t[-1]) * d
 
 
 def _follow(
@@ -179,9 +204,10 @@ def _follow(
     half_m: float,
     max_len: float,
     px_m: float,
+    step_widths: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Follow a bright strip from ``start`` along ``direction`` until it ends."""
-    step = max(2.0 * width / 3.0, 4 * px_m)
+    step = max(step_widths * width, 4 * px_m)
     pts, widths = [], []
     p, d = start.copy(), direction.copy()
     travelled = 0.0
@@ -189,7 +215,7 @@ def _follow(
     while travelled < max_len:
         q = p + step * d
         n = np.array([-d[1], d[0]])
-        v, offs = profile(image, to_px, q, n, max(half_m, 2.5 * prev_w), 0.5 * px_m)
+        v, offs = profile(image, to_px, q, n, max(half_m, 2.5 * prev_w), 0.75 * px_m)
         s = find_strip(v, offs, 0.0)
         if s is None or s.width < 0.5 * width or abs(s.centre) > 0.7 * max(prev_w, width):
             break

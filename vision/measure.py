@@ -112,6 +112,7 @@ class Measurer:
         method: str = "default",
         poly_degree: int = 7,
         max_blur_px: float = 2.2,
+        edge_estimator: str = "moment",
     ) -> None:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
@@ -125,6 +126,7 @@ class Measurer:
         self.method = method
         self.poly_degree = int(poly_degree)
         self.max_blur_px = float(max_blur_px)
+        self.edge_estimator = edge_estimator
         self._h = calibration.fit.matrix
         self._h_inv = np.linalg.inv(self._h)
         self._k = calibration.camera_matrix
@@ -244,7 +246,7 @@ class Measurer:
         seg = np.linalg.norm(np.diff(line_m, axis=0), axis=1)
         seg_px = np.linalg.norm(np.diff(px, axis=0), axis=1)
         scale = float(np.median(seg_px / np.maximum(seg, 1e-12)))
-        edges = strip_edges(image, px, half_width_m * scale)
+        edges = strip_edges(image, px, half_width_m * scale, estimator=self.edge_estimator)
         if len(edges.side_a) < 5:
             raise FrameFailure("too few edge points (strip not visible)")
         keep = edges.contrast > 0.35 * np.median(edges.contrast)
