@@ -22,11 +22,14 @@ with M, K, b, G of :class:`sim.modes.ModalIntegrals`:
   a term of first order, whose effect on the lateral equation (N w'')' is second order; so
   neither appears in the linear equations.
 
-Damping follows Eq. 28 on the elastic deformation rates: C = a0 M + a1 K with K the elastic
-stiffness only. The geometric part theta'^2 G is a load-dependent stiffness (the axial
-force of the prescribed rotation), not a material property: material (strain-rate) damping
-acts on the bending strain rate, whose energy form is K. For the bench it would change the
-a1 term by at most theta'^2 G_11 / K_11 ~ 3 %.
+Damping follows Eq. 28 on the elastic deformation rates, C = a0 M + a1 K_T, and by default
+K_T is the tangent stiffness as in Eq. 28 / FLXDYN: elastic K plus the geometric stiffness
+theta'^2 G of the current axial (centrifugal) force, so C varies in time. That is the
+paper's model and what the finite-element models (``sim.fe``) do, and it matters: on the
+bench (a1 = 0.1 s, first mode overdamped) leaving G out of the damping moves the tip by
+1.2 %. ``damping_geometric=False`` damps with the elastic K alone (a material view: only
+the bending strain rate dissipates), for comparison. Without stiffening there is no G
+anywhere.
 
 The equations are linear in q with time-varying coefficients; they are integrated with the
 batched Radau IIA scheme of ``sim.ltv`` with step halving until the estimated tip error meets
@@ -67,6 +70,7 @@ class ModalModel:
     a1_s: float
     tip_mass_kg: float
     integrals: ModalIntegrals
+    damping_geometric: bool = True
 
     @classmethod
     def build(
@@ -78,6 +82,7 @@ class ModalModel:
         a0_per_s: float = 0.0,
         a1_s: float = 0.0,
         tip_mass_kg: float = 0.0,
+        damping_geometric: bool = True,
     ) -> ModalModel:
         if isinstance(n_modes, bool) or not isinstance(n_modes, int | np.integer) or n_modes < 1:
             raise ValueError(f"n_modes must be a positive integer, got {n_modes!r}")
@@ -97,11 +102,20 @@ class ModalModel:
             check_non_negative("a1_s", a1_s),
             float(tip_mass_kg),
             integrals,
+            bool(damping_geometric),
         )
 
     @property
     def damping(self) -> FloatArray:
+        """The constant part of C: a0 M + a1 K."""
         return self.a0_per_s * self.integrals.mass + self.a1_s * self.integrals.stiffness
+
+    @property
+    def rotation_damping(self) -> FloatArray:
+        """The coefficient of theta'^2 in C: a1 G (geometric part of K_T), or zero."""
+        if self.stiffening and self.damping_geometric:
+            return self.a1_s * self.integrals.centrifugal
+        return np.zeros_like(self.integrals.mass)
 
     @property
     def rotation_stiffness(self) -> FloatArray:
@@ -119,6 +133,7 @@ class ModalModel:
         a0[n:, n:] = -minv @ self.damping
         a1 = np.zeros((2 * n, 2 * n))
         a1[n:, :n] = -minv @ self.rotation_stiffness
+        a1[n:, n:] = -minv @ self.rotation_damping
         f1 = np.zeros(2 * n)
         f1[n:] = -minv @ self.integrals.euler
         return a0, a1, f1
@@ -132,6 +147,7 @@ class ModalModel:
         mi = self.integrals
         force = (
             -qd @ self.damping.T
+            - (rate**2)[:, None] * (qd @ self.rotation_damping.T)
             - q @ mi.stiffness.T
             - (rate**2)[:, None] * (q @ self.rotation_stiffness.T)
             - acc[:, None] * mi.euler[None, :]
@@ -239,6 +255,7 @@ def simulate_modal(
     tip_mass_kg: float = 0.0,
     initial_q: ArrayLike | None = None,
     initial_qdot: ArrayLike | None = None,
+    damping_geometric: bool = True,
 ) -> SimResult:
     """Simulate the beam with ``n_modes`` clamped-free modes on the prescribed hub.
 
@@ -249,13 +266,15 @@ def simulate_modal(
     t_eval_s : (N,) output times, s; the initial state is at ``t_eval_s[0]``.
     n_modes : number of assumed modes.
     stiffening : include the centrifugal (geometric) stiffening; ``False`` = seed 001.
-    a0_per_s, a1_s : proportional damping C = a0 M + a1 K (Eq. 28; K elastic only).
+    a0_per_s, a1_s : proportional damping C = a0 M + a1 K_T (Eq. 28).
     gauge_positions_m : (G,) gauge distances from the clamp, m.
     n_stations : equally spaced shape stations, clamp and tip included.
     rtol, atol : tolerance on the tip deflection: estimated max error <= atol (m) +
         rtol * max |tip deflection|.
     tip_mass_kg : point mass at the tip.
     initial_q, initial_qdot : (n_modes,) initial modal amplitudes (m) and rates (m/s).
+    damping_geometric : K_T includes the geometric stiffness theta'^2 G (Eq. 28, default);
+        ``False`` damps with the elastic K only.
 
     Returns
     -------
@@ -266,7 +285,13 @@ def simulate_modal(
         beam, drive, t_eval_s, gauge_positions_m, n_stations
     )
     model = ModalModel.build(
-        beam, n_modes, stiffening=stiffening, a0_per_s=a0_per_s, a1_s=a1_s, tip_mass_kg=tip_mass_kg
+        beam,
+        n_modes,
+        stiffening=stiffening,
+        a0_per_s=a0_per_s,
+        a1_s=a1_s,
+        tip_mass_kg=tip_mass_kg,
+        damping_geometric=damping_geometric,
     )
     start = time.perf_counter()
     q, _qd, info = integrate_modal(
@@ -313,7 +338,11 @@ def modal_result(
         "tip_mass_kg": model.tip_mass_kg,
         "rtol": rtol,
         "atol": atol,
-        "damping_stiffness": "elastic K only",
+        "damping_stiffness": (
+            "tangent K + theta'^2 G"
+            if model.stiffening and model.damping_geometric
+            else "elastic K"
+        ),
         **info,
     }
     return SimResult(

@@ -144,3 +144,20 @@ def test_bad_inputs_name_the_parameter() -> None:
         simulate_rigid(BEAM, object(), t)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="a1_s"):
         simulate_modal(BEAM, SinusoidDrive(), t, a1_s=-1.0)
+
+
+def test_energy_balance_with_damping_on_accounts_for_the_dissipation() -> None:
+    """W_hub = dE + int q'^T C(t) q' dt with C = a0 M + a1 (K + theta'^2 G) (Eq. 28, K_T)."""
+    drive = SinusoidDrive()
+    model = ModalModel.build(BEAM, 3, a0_per_s=0.1, a1_s=0.1)
+    t = np.linspace(0.0, 2.0, 8001)
+    q, qd, _ = integrate_modal(model, drive, t, rtol=1e-10, atol=1e-15)
+    qdd = model.accelerations(drive, t, q, qd)
+    power = drive.rate(t) * model.hub_torque_n_m(drive, t, q, qd, qdd)
+    c_t = model.damping[None] + (drive.rate(t) ** 2)[:, None, None] * model.rotation_damping[None]
+    loss = cumulative_simpson(np.einsum("ki,kij,kj->k", qd, c_t, qd), x=t, initial=0.0)
+    work = cumulative_simpson(power, x=t, initial=0.0)
+    energy = model.kinetic_energy_j(drive, t, q, qd) + model.strain_energy_j(q)
+    assert loss[-1] > 1e-3 * np.abs(energy).max()
+    assert np.abs(work - loss - (energy - energy[0])).max() < 1e-7 * np.abs(energy).max()
+    assert np.abs(model.rotation_damping).max() > 0.0
