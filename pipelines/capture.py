@@ -23,7 +23,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from daq.antialias import design_antialias
+from daq.antialias import AntiAliasDesign, design_antialias
 from daq.errors import DaqError, DeviceTimeoutError
 from daq.log import LogWriter
 from daq.protocols import Camera, StrainDaq
@@ -178,7 +178,7 @@ def _run_info(
     rig: Rig,
     daq_device: StrainDaq,
     camera_device: Camera | None,
-    design: Any,
+    design: AntiAliasDesign,
     duration_s: float,
     realtime: bool,
     start_utc: datetime,
@@ -257,20 +257,7 @@ def capture_run(
     writer: LogWriter | None = None
     reader: _CameraReader | None = None
     try:
-        try:
-            daq_device.start()
-        except DaqError as exc:
-            raise BeambenchError(f"DAQ: {exc}") from None
-        start_utc = datetime.now(UTC)
-        try:
-            design = design_antialias(rig.daq, daq_device.sample_rate_hz)
-        except ValueError as exc:
-            raise BeambenchError(f"DAQ: {exc}") from None
-        if camera_device is not None:
-            try:
-                camera_device.start()
-            except DaqError as exc:
-                raise BeambenchError(f"camera: {exc}") from None
+        design, start_utc = _start_devices(rig, daq_device, camera_device)
         info = _run_info(rig, daq_device, camera_device, design, duration_s, realtime, start_utc)
         try:
             writer = LogWriter(
@@ -284,7 +271,8 @@ def capture_run(
             raise BeambenchError(f"{out}: cannot write: {exc.strerror or exc}") from None
         writer.write_event(_event(0, "info", "start", f"run {info['run_id']} started"))
         if camera_device is not None:
-            period = 1.0 / float(camera_device.describe().get("frame_rate_hz") or 1.0)  # type: ignore[arg-type]
+            fps = camera_device.describe().get("frame_rate_hz")
+            period = 1.0 / fps if isinstance(fps, int | float) and fps > 0 else 1.0
             reader = _CameraReader(camera_device, end_ns, realtime, period)
             reader.start()
         try:
@@ -324,7 +312,13 @@ def capture_run(
         if reader is not None:
             reader.join(timeout=5.0)
         if writer is not None:
-            writer.close()
+            try:
+                writer.close()
+            except OSError as exc:
+                raise BeambenchError(
+                    f"{out}: finishing the log failed ({exc.strerror or exc}); what was "
+                    f"flushed can be restored with 'beambench recover {out} --out FIXED.mcap'"
+                ) from None
     assert writer is not None
     if reader is not None and reader.failure is not None:
         raise reader.failure
@@ -349,6 +343,28 @@ def capture_run(
     )
 
 
+def _start_devices(
+    rig: Rig, daq_device: StrainDaq, camera_device: Camera | None
+) -> tuple[AntiAliasDesign, datetime]:
+    """Start the DAQ (run-clock zero), design the filter at its real rate, start the
+    camera. Device problems become ``BeambenchError``."""
+    try:
+        daq_device.start()
+    except DaqError as exc:
+        raise BeambenchError(f"DAQ: {exc}") from None
+    start_utc = datetime.now(UTC)
+    try:
+        design = design_antialias(rig.daq, daq_device.sample_rate_hz)
+    except ValueError as exc:
+        raise BeambenchError(f"DAQ: {exc}") from None
+    if camera_device is not None:
+        try:
+            camera_device.start()
+        except DaqError as exc:
+            raise BeambenchError(f"camera: {exc}") from None
+    return design, start_utc
+
+
 def _last_time(writer: LogWriter) -> int:
     return writer.last_log_time_ns or 0
 
@@ -365,7 +381,7 @@ def _loop(
     daq_device: StrainDaq,
     reader: _CameraReader | None,
     writer: LogWriter,
-    design: Any,
+    design: AntiAliasDesign,
     end_ns: int,
     duration_s: float,
     c: _Counters,
