@@ -81,8 +81,10 @@ def _dynamic(
     a1: float,
     gauges: Sequence[float],
     n_modes: int,
-    rtol: float,
+    rtol: float | None,
 ) -> SimResult:
+    """Run a dynamic model; ``rtol=None`` leaves each model at its own default (modal 1e-6,
+    fe 1e-6, auto tol 1e-4)."""
     if model == "rigid":
         return simulate_rigid(beam, drive, t, gauge_positions_m=gauges)
     if model == "modal":
@@ -94,15 +96,17 @@ def _dynamic(
             a0_per_s=a0,
             a1_s=a1,
             gauge_positions_m=gauges,
-            rtol=rtol,
+            rtol=1e-6 if rtol is None else rtol,
             atol=1e-12,
         )
     if model == "fe":
         fe = _external("sim.fe", "simulate_fe")
-        return fe(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges)
+        kw = {} if rtol is None else {"rtol": rtol}
+        return fe(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
     if model == "auto":
         auto = _external("sim.auto", "simulate_auto")
-        return auto(beam, drive, t, tol=rtol, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges)
+        kw = {} if rtol is None else {"tol": rtol}
+        return auto(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
     raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
 
 
@@ -129,7 +133,7 @@ def reciprocating(
     gauge_positions_m: Sequence[float] = (),
     output_rate_hz: float = 400.0,
     n_modes: int = 4,
-    rtol: float = 1e-6,
+    rtol: float | None = None,
 ) -> SceneRun:
     """The bench's reciprocating beam from rest: the paper's sinusoid (Eq. 53) or the
     four-bar's true output at ``linkage.crank_frequency_hz``."""
@@ -282,14 +286,16 @@ def spin_up(
     n_modes: int = 6,
     stiffening: bool = True,
     output_rate_hz: float = 100.0,
-    rtol: float = 1e-6,
+    rtol: float | None = None,
 ) -> SceneRun:
     """The Kane / Simo-Vu-Quoc spin-up beam (``sim.beam.spin_up_beam``, no hub offset)."""
     beam = spin_up_beam()
     hub = SpinUpDrive(omega_rad_s, ramp_s)
     t = _times(duration_s, output_rate_hz)
     if model == "modal" and not stiffening:
-        res = simulate_modal(beam, hub, t, n_modes=n_modes, stiffening=False, rtol=rtol)
+        res = simulate_modal(
+            beam, hub, t, n_modes=n_modes, stiffening=False, rtol=1e-6 if rtol is None else rtol
+        )
     else:
         res = _dynamic(model, beam, hub, t, a0=0.0, a1=0.0, gauges=(), n_modes=n_modes, rtol=rtol)
     return SceneRun(res, {"omega_rad_s": omega_rad_s, "ramp_s": ramp_s})

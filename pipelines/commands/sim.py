@@ -83,7 +83,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--n-modes", type=int, default=None, metavar="N", help="modal model: number of modes"
     )
-    p.add_argument("--rtol", type=_finite, default=1e-6, help="tolerance of the dynamic models")
+    p.add_argument(
+        "--rtol",
+        type=_finite,
+        default=None,
+        help="tolerance of the dynamic model (default: the model's own; modal 1e-6, auto 1e-4)",
+    )
     p.add_argument(
         "--output-rate",
         type=_finite,
