@@ -393,6 +393,7 @@ def _loop(
     pending: list[Frame] = []
     camera_done = reader is None
     rate = daq_device.sample_rate_hz
+    clipped_before: tuple[int, ...] = ()
     while True:
         block = daq_device.read_block(timeout_s)
         if len(block) == 0:
@@ -414,12 +415,14 @@ def _loop(
                 )
             )
         expected_seq = block.first_sequence + len(block)
-        if block.clipped_channels:
+        if block.clipped_channels and block.clipped_channels != clipped_before:
+            # one event when clipping starts or moves to other channels, not every block
             c.clipping += 1
             names = ", ".join(CHANNEL_NAMES[i] for i in block.clipped_channels)
             writer.write_event(
                 _event(t_first, "warning", "clipping", f"ADC range reached on {names}")
             )
+        clipped_before = block.clipped_channels
         samples = stream.process(block)
         keep = int((samples.t_ns < end_ns).sum())
         writer.write_samples(samples.slice(0, keep) if keep < len(samples) else samples)
