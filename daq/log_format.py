@@ -1,5 +1,19 @@
 """The run log's format, version 1 (``shared/design.md``): topics, schemas and the
-encoding of each record. Used by the writer, reader and recovery modules."""
+encoding of each record. Used by the writer, reader and recovery modules.
+
+- Header: profile ``beambench``, library ``beambench <version>``.
+- Metadata ``rig``: ``json`` = ``Rig.to_json()`` plus one JSON string per section;
+  ``run``: strings as they are, other values as JSON (keys listed in ``_json_keys``).
+- ``log_time``: run clock, int ns (zero = the DAQ's first sample; sample times have the
+  anti-alias group delay removed). ``publish_time``: UTC wall clock of the write, ns.
+- ``sequence``: ``/daq/samples`` the output-sample index, ``/camera/image`` the camera's
+  frame counter, ``/events`` a counter: a jump is a loss.
+- ``/daq/samples``: JSON (schema ``beambench.DaqSample``), one message per sample;
+  ``/camera/image``, ``/camera/info``, ``/events``: protobuf ``foxglove.CompressedImage``,
+  ``foxglove.CameraCalibration``, ``foxglove.Log`` (``name`` = event name).
+- Chunks: zstd; frames go in chunks of their own (up to 8 frames) so reading samples
+  never decompresses images; every flush ends a chunk and fsyncs.
+"""
 
 from __future__ import annotations
 
