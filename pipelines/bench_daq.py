@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -137,20 +138,19 @@ def loss_window(tmp: Path, kill_after_s: float, index: int) -> dict[str, float]:
         text=True,
     )
     assert proc.stdout is not None
-    t_start = float(proc.stdout.readline())  # just before the DAQ starts (run clock 0)
+    t_start = float(proc.stdout.readline())  # just before capture_run
     time.sleep(max(0.0, t_start + kill_after_s - time.monotonic()))
-    t_kill = time.monotonic()
+    t_kill_utc = time.time()
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=30)
     fixed = tmp / f"fixed{index}.mcap"
     recover_log(out, fixed)
     run = read_run(fixed)
+    # run-clock zero in UTC, as the capture recorded it right after starting the DAQ
+    zero = datetime.fromisoformat(str(run.run_info["start_utc"]).replace("Z", "+00:00"))
+    killed_at_s = t_kill_utc - zero.timestamp()
     last_s = float(run.samples.t_ns[-1]) * 1e-9 if len(run.samples) else 0.0
-    return {
-        "killed_at_s": t_kill - t_start,
-        "last_sample_s": last_s,
-        "loss_s": t_kill - t_start - last_s,
-    }
+    return {"killed_at_s": killed_at_s, "last_sample_s": last_s, "loss_s": killed_at_s - last_s}
 
 
 def run(quick: bool = False) -> int:
