@@ -19,7 +19,7 @@ from vision.sampling import edge_gauss3, edge_moment
 @dataclass
 class StripEdges:
     """Edge points (raw px, (N, 2) x, y) on the two sides of a strip, paired by scan line,
-    with their contrast (DN) and spread (px)."""
+    with their contrast (DN) and ramp width along the scan line (px)."""
 
     side_a: NDArray[np.float64]
     side_b: NDArray[np.float64]
@@ -30,14 +30,16 @@ class StripEdges:
 def strip_edges(
     image: NDArray[np.uint8],
     centre_px: NDArray[np.float64],
-    half_width_px: float,
+    half_width_px: float | NDArray[np.float64],
     margin_px: int = 5,
     window: int = 2,
     estimator: str = "moment",
+    max_window: int = 8,
 ) -> StripEdges:
     """Scan across a bright strip whose centre line is the polyline ``centre_px``
-    ((M, 2) raw px, ordered along the strip, dense). ``half_width_px``: its half width
-    measured along the scan lines is estimated from the polyline direction."""
+    ((M, 2) raw px, ordered along the strip, dense). ``half_width_px`` (scalar or (M,)):
+    its half width across the strip in px; along the scan lines it is widened by the
+    polyline's slope."""
     d = centre_px[-1] - centre_px[0]
     columns = abs(d[0]) >= abs(d[1])
     img = image if columns else image.T
@@ -45,6 +47,7 @@ def strip_edges(
     # pts[:, 0] is now the scan-line index axis, pts[:, 1] the position along the line.
     order = np.argsort(pts[:, 0])
     pts = pts[order]
+    hw = np.broadcast_to(np.asarray(half_width_px, dtype=np.float64), (len(pts),))[order]
     h, w = img.shape  # rows = along-scan positions, cols = scan-line index
     x0 = int(np.ceil(pts[0, 0]))
     x1 = int(np.floor(pts[-1, 0]))
@@ -54,8 +57,8 @@ def strip_edges(
         return empty
     yc = np.interp(lines, pts[:, 0], pts[:, 1])
     slope = np.gradient(yc, lines) if lines.size > 2 else np.zeros_like(yc)
-    half = half_width_px * np.sqrt(1.0 + slope**2)
-    reach = int(np.ceil(np.max(half))) + margin_px + window
+    half = np.interp(lines, pts[:, 0], hw) * np.sqrt(1.0 + slope**2)
+    reach = int(np.ceil(np.max(half))) + margin_px + max_window
     offs = np.arange(-reach, reach + 1)
     rows = np.round(yc).astype(np.intp)[:, None] + offs[None, :]
     inside = (rows.min(axis=1) >= 0) & (rows.max(axis=1) < h)
@@ -74,8 +77,21 @@ def strip_edges(
     near_b = np.abs(pos[None, :] - exp_b[:, None]) <= tol
     pa = np.argmax(np.where(near_a, diff, -np.inf), axis=1)
     pb = np.argmax(np.where(near_b, -diff, -np.inf), axis=1)
-    ca, ka, sa = edge_moment(diff, pa, window)
-    cb, kb, sb = edge_moment(-diff, pb, window)
+    # Ramp width (px) = contrast / steepest step: motion blur widens it; the moment
+    # window grows with it so a blurred edge is still located at its centre.
+    rr = np.arange(len(lines))
+    inner = np.abs(np.arange(prof.shape[1])[None, :] - mid[:, None]) < 0.5 * half[:, None]
+    level_in = np.nanmedian(np.where(inner, prof, np.nan), axis=1)
+    outer = np.concatenate([prof[:, :margin_px], prof[:, -margin_px:]], axis=1)
+    level_out = np.median(outer, axis=1)
+    contrast = np.maximum(level_in - level_out, 1e-6)
+    width_a = contrast / np.maximum(diff[rr, pa], 1e-6)
+    width_b = contrast / np.maximum(-diff[rr, pb], 1e-6)
+    wa = np.clip(np.ceil(0.5 * width_a + 0.5), window, max_window).astype(np.intp)
+    wb = np.clip(np.ceil(0.5 * width_b + 0.5), window, max_window).astype(np.intp)
+    ca, ka, _ = edge_moment(diff, pa, wa)
+    cb, kb, _ = edge_moment(-diff, pb, wb)
+    sa, sb = width_a, width_b
     if estimator == "gauss3":
         ga, gb = edge_gauss3(diff, pa), edge_gauss3(-diff, pb)
         ca = np.where(np.isfinite(ga), ga, ca)

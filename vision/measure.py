@@ -55,7 +55,8 @@ class FrameMeasurement:
     clamp_plane_m, tip_plane_m : (2,) where the free beam begins / the tip's end centre.
     hub_width_m, beam_width_m : widths measured in the frame.
     edge_rms_m : RMS residual of the beam edge fits.
-    blur_px : median spread of the beam's edges (a motion-blur indicator).
+    blur_px : median ramp width of the beam's edges along the scan lines, px (motion blur
+        widens it; frames beyond ``max_blur_px`` are flagged).
     """
 
     ok: bool
@@ -111,7 +112,7 @@ class Measurer:
         stations_m: Sequence[float] = (0.005, 0.204, 0.403, 0.603),
         method: str = "default",
         poly_degree: int = 7,
-        max_blur_px: float = 2.2,
+        max_blur_px: float = 9.0,
         edge_estimator: str = "moment",
     ) -> None:
         if not isinstance(calibration, Calibration):
@@ -243,10 +244,13 @@ class Measurer:
         half_width_m: float,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         px = self.to_px(line_m)
-        seg = np.linalg.norm(np.diff(line_m, axis=0), axis=1)
-        seg_px = np.linalg.norm(np.diff(px, axis=0), axis=1)
-        scale = float(np.median(seg_px / np.maximum(seg, 1e-12)))
-        edges = strip_edges(image, px, half_width_m * scale, estimator=self.edge_estimator)
+        # Half width in pixels across the strip, point by point (perspective foreshortens
+        # across and along differently).
+        t = np.gradient(line_m, axis=0)
+        t /= np.linalg.norm(t, axis=1, keepdims=True)
+        nrm = np.column_stack([-t[:, 1], t[:, 0]])
+        across = np.linalg.norm(self.to_px(line_m + half_width_m * nrm) - px, axis=1)
+        edges = strip_edges(image, px, across, estimator=self.edge_estimator)
         if len(edges.side_a) < 5:
             raise FrameFailure("too few edge points (strip not visible)")
         keep = edges.contrast > 0.35 * np.median(edges.contrast)

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from vision.calibration import Calibration
 from vision.camera import check_intrinsics, distort_points_px, undistort_points_px
 from vision.config import RegistrationConfig
+from vision.homography import apply_homography, collineation_4pt
 from vision.sampling import bilinear, edge_moment
 
 
@@ -111,15 +112,14 @@ def _side_points(
     return base + off[good, None] * nrm
 
 
-def detect_registration_corners(
+def _detect_inner(
     image_gray: NDArray[np.uint8],
     registration: RegistrationConfig,
     camera_matrix: NDArray[np.float64] | None = None,
     distortion: NDArray[np.float64] | None = None,
     x_axis_image_rad: float = 0.0,
 ) -> NDArray[np.float64]:
-    """Raw-pixel corners (4, 2) of the crossing square, in the order of
-    :func:`registration_plane_points_m`. Raises ``ValueError`` with the reason."""
+    """Raw-pixel corners (4, 2) of the crossing square from the quadrants' inner corners."""
     if not isinstance(image_gray, np.ndarray) or image_gray.dtype != np.uint8:
         raise TypeError("image_gray must be a uint8 numpy array")
     if image_gray.ndim != 2:
@@ -227,6 +227,103 @@ def _order(corners: NDArray[np.float64], angle_rad: float, x_axis_image_rad: flo
     return best
 
 
+def _local_to_plane(registration: RegistrationConfig, local: NDArray[np.float64]) -> NDArray:
+    c, s = math.cos(registration.angle_rad), math.sin(registration.angle_rad)
+    return local @ np.array([[c, s], [-s, c]]) + np.asarray(registration.center_m)
+
+
+def detect_registration_points(
+    image_gray: NDArray[np.uint8],
+    registration: RegistrationConfig,
+    camera_matrix: NDArray[np.float64] | None = None,
+    distortion: NDArray[np.float64] | None = None,
+    x_axis_image_rad: float = 0.0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """All 16 corners of the plate's four light quadrants: raw pixels (16, 2) and beam-plane
+    metres (16, 2). The eight straight edges (two per groove, four plate borders) are each
+    refined along their whole length and intersected, which pins the homography over the
+    whole plate rather than only the crossing square. Raises ``ValueError`` with a reason."""
+    k, d = check_intrinsics(camera_matrix, distortion)
+    inner = _detect_inner(image_gray, registration, k, d, x_axis_image_rad)
+    hs, hp = registration.square_side_m / 2, registration.plate_side_m / 2
+    local_inner = np.array([[-hs, -hs], [hs, -hs], [hs, hs], [-hs, hs]])
+    ideal_inner = undistort_points_px(inner, k, d)
+    h0 = collineation_4pt(local_inner, ideal_inner).matrix
+    levels = (-hp, -hs, hs, hp)
+    light_dir = (1.0, -1.0, 1.0, -1.0)  # light side of each level (toward the quadrants)
+    segments = ((-hp, -hs), (hs, hp))
+    lines: list[list[tuple[NDArray[np.float64], NDArray[np.float64]]]] = [[], []]
+    for axis in (0, 1):
+        for level, sign in zip(levels, light_dir, strict=True):
+            pts = []
+            for lo, hi in segments:
+                t = np.linspace(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), 40)
+                local = np.zeros((len(t), 2))
+                local[:, axis] = level
+                local[:, 1 - axis] = t
+                step = np.zeros(2)
+                step[axis] = sign * 0.2 * hs
+                pts.append(_refine_line(image_gray, h0, k, d, local, step))
+            ideal = undistort_points_px(np.vstack(pts), k, d)
+            if len(ideal) < 20:
+                raise ValueError("registration object: plate edges not visible")
+            lines[axis].append(_fit_line(ideal))
+    ideal16, local16 = [], []
+    for i, lu in enumerate(lines[0]):
+        for j, lv in enumerate(lines[1]):
+            ideal16.append(_intersect(lu, lv))
+            local16.append((levels[i], levels[j]))
+    raw = distort_points_px(np.array(ideal16), k, d)
+    h, w = image_gray.shape
+    if np.any(raw < 0) or np.any(raw[:, 0] > w - 1) or np.any(raw[:, 1] > h - 1):
+        raise ValueError("registration object: a plate corner lies off the image")
+    return raw, _local_to_plane(registration, np.array(local16))
+
+
+def _refine_line(
+    image: NDArray[np.uint8],
+    h0: NDArray[np.float64],
+    k: NDArray[np.float64] | None,
+    d: NDArray[np.float64] | None,
+    local: NDArray[np.float64],
+    toward_light: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Sub-pixel dark-to-light edge points (raw px) near predicted local edge points."""
+    a = distort_points_px(apply_homography(h0, local), k, d)
+    b = distort_points_px(apply_homography(h0, local + toward_light), k, d)
+    nrm = b - a
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    step = 0.25
+    offs = np.arange(-8.0, 8.0 + step / 2, step)
+    pts = a[:, None, :] + offs[None, :, None] * nrm[:, None, :]
+    v = bilinear(image, pts.reshape(-1, 2)).reshape(len(a), len(offs))
+    ok = np.all(np.isfinite(v), axis=1)
+    if not ok.any():
+        return np.zeros((0, 2))
+    diff = np.diff(v[ok], axis=1)
+    peak = np.argmax(diff, axis=1)
+    c, kk, _ = edge_moment(diff, peak, round(4.0 / step))
+    off = offs[0] + c * step
+    good = np.isfinite(off) & (kk > 15) & (np.abs(off) < 6.0)
+    return a[ok][good] + off[good, None] * nrm[ok][good]
+
+
+def detect_registration_corners(
+    image_gray: NDArray[np.uint8],
+    registration: RegistrationConfig,
+    camera_matrix: NDArray[np.float64] | None = None,
+    distortion: NDArray[np.float64] | None = None,
+    x_axis_image_rad: float = 0.0,
+) -> NDArray[np.float64]:
+    """Raw-pixel corners (4, 2) of the crossing square, in the order of
+    :func:`registration_plane_points_m`. Raises ``ValueError`` with the reason."""
+    raw, _ = detect_registration_points(
+        image_gray, registration, camera_matrix, distortion, x_axis_image_rad
+    )
+    # Grid order: index 4 * i + j for levels (-P/2, -s/2, s/2, P/2); inner corners:
+    return raw[[5, 9, 10, 6]]
+
+
 def calibration_from_registration(
     image_gray: NDArray[np.uint8],
     registration: RegistrationConfig,
@@ -237,14 +334,17 @@ def calibration_from_registration(
     beam_width_m: float = 0.01905,
     x_axis_image_rad: float = 0.0,
 ) -> Calibration:
-    """Detect the registration object in a frame and build the :class:`Calibration`.
-    Raises ``ValueError`` with the reason when the object cannot be found."""
-    corners = detect_registration_corners(
+    """Detect the registration object in a frame and build the :class:`Calibration`
+    from the 16 plate-quadrant corners (normalized DLT). Raises ``ValueError`` with the
+    reason when the object cannot be found."""
+    if not isinstance(image_gray, np.ndarray) or image_gray.dtype != np.uint8:
+        raise TypeError("image_gray must be a uint8 numpy array")
+    image_pts, plane_pts = detect_registration_points(
         image_gray, registration, camera_matrix, distortion, x_axis_image_rad
     )
     return Calibration(
-        corners,
-        registration_plane_points_m(registration),
+        image_pts,
+        plane_pts,
         camera_matrix,
         distortion,
         beam_length_m=beam_length_m,

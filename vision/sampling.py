@@ -27,16 +27,19 @@ def bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.fl
 
 
 def edge_moment(
-    diff: NDArray[np.float64], peak: NDArray[np.intp], half: int
+    diff: NDArray[np.float64], peak: NDArray[np.intp], half: int | NDArray[np.intp]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """First moment of positive differences around ``peak`` in each row of ``diff``.
 
-    ``diff[i, k]`` is the step between samples k and k+1 (located at k + 0.5). Returns the
-    sub-sample edge position, the summed step (contrast) and the RMS spread (samples)."""
+    ``diff[i, k]`` is the step between samples k and k+1 (located at k + 0.5); ``half`` is
+    the window half-width (steps), one for all rows or one per row. Returns the sub-sample
+    edge position, the summed step (contrast) and the RMS spread (samples)."""
     _n, m = diff.shape
-    offs = np.arange(-half, half + 1)
+    halves = np.broadcast_to(np.asarray(half), peak.shape)
+    hmax = int(np.max(halves)) if halves.size else 0
+    offs = np.arange(-hmax, hmax + 1)
     idx = peak[:, None] + offs[None, :]
-    valid = (idx >= 0) & (idx < m)
+    valid = (idx >= 0) & (idx < m) & (np.abs(offs)[None, :] <= halves[:, None])
     idx = np.clip(idx, 0, m - 1)
     d = np.take_along_axis(diff, idx, axis=1)
     d = np.where(valid & (d > 0), d, 0.0)

@@ -6,7 +6,12 @@ import pickle
 import numpy as np
 import pytest
 
-from vision import Measurer, calibration_from_registration, plane_to_image_px
+from vision import (
+    Measurer,
+    calibration_from_registration,
+    detect_registration_corners,
+    plane_to_image_px,
+)
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.render import BeamPose, Clutter, encode, render_frame
 
@@ -97,8 +102,17 @@ def test_measurer_pickles_and_the_paper_method_runs(nominal_spec, vt) -> None:
 
 def test_registration_is_detected_to_a_tenth_of_a_pixel(nominal_spec, vt) -> None:
     frame = render_frame(nominal_spec, [vt.bent(math.radians(300), 0.0)])
+    corners = detect_registration_corners(frame.image, RegistrationConfig())
+    np.testing.assert_allclose(corners, frame.truth.corners_px, atol=0.05)
     cal = calibration_from_registration(frame.image, RegistrationConfig())
-    np.testing.assert_allclose(cal.image_points_px, frame.truth.corners_px, atol=0.1)
+    assert len(cal.image_points_px) == 16  # every quadrant corner of the plate
+    # All 16 map onto their plane points as the renderer's exact projection says.
+    np.testing.assert_allclose(
+        cal.image_points_px, nominal_spec.plane_to_image_px(cal.plane_points_m), atol=0.08
+    )
+    assert cal.fit.rms_residual < 2e-5  # m
+    m = Measurer(cal).measure(frame.image)
+    assert m.ok and abs(math.degrees(m.hub_angle_rad - frame.truth.hub_angle_rad)) < 0.03
     occluded = frame.image.copy()
     c = frame.truth.corners_px.mean(axis=0).astype(int)
     occluded[c[1] - 120 : c[1] + 120, c[0] - 120 : c[0] + 120] = 40
