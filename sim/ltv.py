@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,8 +60,19 @@ def step_grid(t_out: FloatArray, n_sub: NDArray[np.intp]) -> tuple[FloatArray, N
     return grid, out_index
 
 
-def radau_grid(coefficients: Coefficients, grid: FloatArray, x0: FloatArray) -> FloatArray:
-    """One Radau IIA step between consecutive ``grid`` times; returns the states (T, m)."""
+def radau_grid(
+    coefficients: Coefficients,
+    grid: FloatArray,
+    x0: FloatArray,
+    extra_forcing: FloatArray | None = None,
+    stages_out: FloatArray | None = None,
+) -> FloatArray:
+    """One Radau IIA step between consecutive ``grid`` times; returns the states (T, m).
+
+    ``extra_forcing`` (T - 1, 3, m), if given, is added to f at the stage times of every
+    step (a forcing known only at those times, e.g. a nonlinear term from a previous
+    iterate). ``stages_out`` (T - 1, 3, m), if given, receives the stage values.
+    """
     m = x0.size
     h = np.diff(grid)
     starts = grid[:-1]
@@ -77,6 +89,8 @@ def radau_grid(coefficients: Coefficients, grid: FloatArray, x0: FloatArray) -> 
         a_mat, f_vec = coefficients(ts.ravel())
         a_mat = a_mat.reshape(k, 3, m, m)
         f_vec = f_vec.reshape(k, 3, m)
+        if extra_forcing is not None:
+            f_vec = f_vec + extra_forcing[c0:c1]
         big = np.zeros((k, 3 * m, 3 * m))
         rhs = np.empty((k, 3 * m, m + 1))
         for i in range(3):
@@ -87,12 +101,16 @@ def radau_grid(coefficients: Coefficients, grid: FloatArray, x0: FloatArray) -> 
                 big[:, i * m : (i + 1) * m, j * m : (j + 1) * m] = block
             rhs[:, i * m : (i + 1) * m, :m] = eye
             rhs[:, i * m : (i + 1) * m, m] = hs[:, None] * np.einsum("j,kjm->km", RADAU_A[i], f_vec)
-        sol = np.linalg.solve(big, rhs)[:, 2 * m :, :]  # last stage = x_{k+1}
+        full = np.linalg.solve(big, rhs)
+        sol = full[:, 2 * m :, :]  # last stage = x_{k+1}
         p_mat = np.ascontiguousarray(sol[:, :, :m])
         g_vec = np.ascontiguousarray(sol[:, :, m])
         for s in range(k):
             x = p_mat[s] @ x + g_vec[s]
             states[c0 + s + 1] = x
+        if stages_out is not None:
+            y = np.einsum("kij,kj->ki", full[:, :, :m], states[c0:c1]) + full[:, :, m]
+            stages_out[c0:c1] = y.reshape(k, 3, m)
     if not np.all(np.isfinite(states)):
         raise SolverError("the Radau IIA recursion produced non-finite values")
     return states
@@ -116,6 +134,7 @@ def solve_ltv(
     atol: float,
     h_initial: float,
     max_refinements: int = 14,
+    grid_out: list[Any] | None = None,
 ) -> tuple[FloatArray, float, float]:
     """Solve to tolerance by step halving.
 
@@ -129,6 +148,7 @@ def solve_ltv(
     Returns
     -------
     states : (T, m) at ``t_out``; estimated error (units of the weighted sum); largest step (s).
+    ``grid_out``, if given, receives the accepted step grid and the output indices in it.
     """
     if t_out.ndim != 1 or t_out.size < 1:
         raise ValueError("t_eval_s must be a non-empty 1-D array")
@@ -150,6 +170,9 @@ def solve_ltv(
         h = float(np.max(np.diff(grid)))
         logger.debug("ltv: h = %.3g s, error estimate %.3g, scale %.3g", h, est, scale)
         if est <= atol + rtol * scale:
+            if grid_out is not None:
+                grid_out.append(grid)
+                grid_out.append(out_index)
             return fine[out_index], est, h
         # halve every step: the current solution becomes the coarse one
         coarse = fine
