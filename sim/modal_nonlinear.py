@@ -69,6 +69,24 @@ def _symmetrise4(t: FloatArray) -> FloatArray:
     return out / len(perms)
 
 
+def _quad(t3: FloatArray, x: FloatArray, y: FloatArray) -> FloatArray:
+    """einsum("ijk,nj,nk->ni") as one matrix product."""
+    n = t3.shape[0]
+    outer = (x[:, :, None] * y[:, None, :]).reshape(x.shape[0], n * n)
+    out: FloatArray = outer @ t3.reshape(n, n * n).T
+    return out
+
+
+def _cubic(t4: FloatArray, x: FloatArray, y: FloatArray, z: FloatArray) -> FloatArray:
+    """einsum("ijkl,nj,nk,nl->ni") as one matrix product."""
+    n = t4.shape[0]
+    outer = (x[:, :, None, None] * y[:, None, :, None] * z[:, None, None, :]).reshape(
+        x.shape[0], n**3
+    )
+    out: FloatArray = outer @ t4.reshape(n, n**3).T
+    return out
+
+
 @dataclass(frozen=True)
 class NonlinearModalTerms:
     """Tensors of the third-order terms (see the module docstring)."""
@@ -112,23 +130,21 @@ class NonlinearModalTerms:
     ) -> FloatArray:
         """Nonlinear generalised force on the left-hand side of the equations, (N, n)."""
         a, f, h, s = self.a, self.f, self.h, self.s
-        e3 = acc[:, None] * (
-            -0.5 * np.einsum("ijk,nj,nk->ni", a, q, q) + np.einsum("jik,nj,nk->ni", a, q, q)
-        ) + 2.0 * rate[:, None] * (
-            -np.einsum("ijk,nj,nk->ni", a, q, qd) + np.einsum("jik,nj,nk->ni", a, qd, q)
+        f_i = np.transpose(f, (2, 0, 1, 3))  # f_i[i, j, k, l] = f[j, k, i, l]
+        a_t = np.transpose(a, (1, 0, 2))  # a_t[i, j, k] = a[j, i, k]
+        e3 = acc[:, None] * (-0.5 * _quad(a, q, q) + _quad(a_t, q, q)) + 2.0 * rate[:, None] * (
+            -_quad(a, q, qd) + _quad(a_t, qd, q)
         )
-        e4a = np.einsum("jkil,nj,nk,nl->ni", f, qd, qd, q) + np.einsum(
-            "jkil,nj,nk,nl->ni", f, q, qdd, q
-        )
-        e4b = -0.5 * (rate**2)[:, None] * np.einsum("jkil,nj,nk,nl->ni", f, q, q, q)
-        e4c = 0.5 * (rate**2)[:, None] * np.einsum("ijkl,nj,nk,nl->ni", h, q, q, q)
-        ev4 = 2.0 * np.einsum("ijkl,nj,nk,nl->ni", s, q, q, q)
-        damp = 6.0 * self.a1_s * np.einsum("ijkl,nj,nk,nl->ni", s, qd, q, q)
+        e4a = _cubic(f_i, qd, qd, q) + _cubic(f_i, q, qdd, q)
+        e4b = -0.5 * (rate**2)[:, None] * _cubic(f_i, q, q, q)
+        e4c = 0.5 * (rate**2)[:, None] * _cubic(h, q, q, q)
+        ev4 = 2.0 * _cubic(s, q, q, q)
+        damp = 6.0 * self.a1_s * _cubic(s, qd, q, q)
         # a1 K_sigma(N1) q': the geometric stiffness of the first-order axial force
         # N1(s) = int_s^L rhoA (2 theta' w_t + theta'' w) in the tangent stiffness of Eq. 28
+        a_k = np.transpose(a, (1, 0, 2))  # a_k[i, k, j] = a[k, i, j]
         damp = damp + self.a1_s * (
-            2.0 * rate[:, None] * np.einsum("kij,nk,nj->ni", a, qd, qd)
-            + acc[:, None] * np.einsum("kij,nk,nj->ni", a, q, qd)
+            2.0 * rate[:, None] * _quad(a_k, qd, qd) + acc[:, None] * _quad(a_k, q, qd)
         )
         out: FloatArray = e3 + e4a + e4b + e4c + ev4 + damp
         return out
