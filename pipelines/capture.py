@@ -463,7 +463,7 @@ def _drain(
     """Move queued camera items to the log; frames later than ``upto_ns`` wait in
     ``pending``. Returns True once the camera reader has finished."""
     done = False
-    while True:
+    while not (pending and pending[-1].t_ns > upto_ns):  # ahead of the DAQ: let it queue
         try:
             item = reader.out.get(timeout=0.1) if wait else reader.out.get_nowait()
         except queue.Empty:
