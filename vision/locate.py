@@ -41,9 +41,14 @@ class Rough:
 
 
 def find_strip(
-    values: NDArray[np.float64], offsets: NDArray[np.float64], expect: float
+    values: NDArray[np.float64],
+    offsets: NDArray[np.float64],
+    expect: float,
+    near: float | None = None,
 ) -> Strip | None:
-    """The bright run (half-maximum crossings) nearest offset ``expect`` in a profile."""
+    """The bright run (half-maximum crossings) nearest offset ``expect`` in a profile.
+    With ``near``, the maximum is taken within ``near`` of ``expect`` (brighter objects
+    elsewhere in the profile then do not hide a dimmer strip)."""
     ok = np.isfinite(values)
     n = len(values)
     if ok.sum() < 0.7 * n:
@@ -52,6 +57,10 @@ def find_strip(
     vs = np.sort(v)
     lo = float(vs[int(0.2 * (n - 1))])
     hi = float(vs[int(0.98 * (n - 1))])
+    if near is not None:
+        close = np.abs(offsets - expect) <= near
+        if close.any():
+            hi = float(np.max(v[close]))
     if hi - lo < 12.0:
         return None
     thr = 0.5 * (lo + hi)
@@ -163,7 +172,12 @@ def locate(
     # The hub continues while the width stays near its median.
     med = float(np.median(hub_w))
     keep = np.abs(hub_w - med) < 0.25 * med
-    last = int(np.argmin(keep)) if not keep.all() else len(keep)
+    # The hub ends at the first two widths in a row that disagree (one noisy width is
+    # not the end).
+    bad2 = ~keep[:-1] & ~keep[1:]
+    last = int(np.argmax(bad2)) if bad2.any() else len(keep)
+    while last > 0 and not keep[last - 1]:
+        last -= 1
     if last < 2:
         raise FrameFailure("no hub found (too short)")
     hub_back = hub_pts[last - 1]
@@ -216,7 +230,7 @@ def _follow(
         q = p + step * d
         n = np.array([-d[1], d[0]])
         v, offs = profile(image, to_px, q, n, max(half_m, 2.5 * prev_w), 0.75 * px_m)
-        s = find_strip(v, offs, 0.0)
+        s = find_strip(v, offs, 0.0, near=0.6 * max(prev_w, width))
         if s is None or s.width < 0.5 * width or abs(s.centre) > 0.7 * max(prev_w, width):
             break
         q = q + s.centre * n

@@ -113,7 +113,8 @@ class Measurer:
         method: str = "default",
         poly_degree: int = 7,
         max_blur_px: float = 9.0,
-        edge_estimator: str = "moment",
+        edge_estimator: str = "area",
+        max_root_slope_rad: float = 0.01,
     ) -> None:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
@@ -128,6 +129,7 @@ class Measurer:
         self.poly_degree = int(poly_degree)
         self.max_blur_px = float(max_blur_px)
         self.edge_estimator = edge_estimator
+        self.max_root_slope_rad = float(max_root_slope_rad)
         self._h = calibration.fit.matrix
         self._h_inv = np.linalg.inv(self._h)
         self._k = calibration.camera_matrix
@@ -209,6 +211,12 @@ class Measurer:
                 f"beam length {arc * 1e3:.0f} mm along the centre line disagrees with "
                 f"{length * 1e3:.0f} mm (occluded or out of view?)"
             )
+        root_slope = float(centre.deriv(np.array([0.0]))[0])
+        if abs(root_slope) > self.max_root_slope_rad:
+            raise FrameFailure(
+                f"the beam leaves the clamp at {math.degrees(root_slope):.2f} deg to the hub "
+                "axis (a clamped beam leaves along it): hub or beam mis-measured"
+            )
         a_st = _stations_to_a(centre, self.stations_m, a_tip)
         lat_st = centre(a_st)
         k = 200
@@ -266,8 +274,8 @@ class Measurer:
         """Hub axis from its two edges fitted as parallel lines in the plane."""
         d = rough.clamp - rough.hub_back
         length = float(np.linalg.norm(d))
-        if length < 2 * self.px_m * 10:
-            raise FrameFailure("hub too short to fit")
+        if length < max(20 * self.px_m, 2.0 * rough.hub_width):
+            raise FrameFailure("hub too short in view to fit its axis")
         e = d / length
         margin = min(0.5 * rough.hub_width, 0.3 * length)
         t = np.linspace(margin, length - margin, max(8, int(length / self.px_m / 3)))

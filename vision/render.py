@@ -264,10 +264,28 @@ def _pixel_maps(spec: SceneSpec) -> tuple[NDArray[Any], ...]:
     w, h = spec.camera.width_px, spec.camera.height_px
     k, d = spec.camera_matrix, spec.distortion
     plane_from_ideal = np.linalg.inv(spec.ideal_from_plane)
-    # Rows of pixels at a time keep memory modest; undistortion is exact (iterative).
     uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
     pts = np.column_stack([uu.ravel(), vv.ravel()])
-    ideal = undistort_points_px(pts, k, d)
+    if np.any(d):
+        # Exact (iterative) undistortion on a 4-px grid, cubic interpolation between:
+        # the distortion field is smooth, the interpolation error is ~1e-4 px.
+        from scipy.ndimage import map_coordinates
+
+        g = 4
+        gu, gv = np.meshgrid(
+            np.arange(-3 * g, w + 3 * g, g, dtype=float),
+            np.arange(-3 * g, h + 3 * g, g, dtype=float),
+        )
+        coarse = undistort_points_px(np.column_stack([gu.ravel(), gv.ravel()]), k, d)
+        where = np.vstack([vv.ravel() / g + 3, uu.ravel() / g + 3])
+        ideal = np.column_stack(
+            [
+                map_coordinates(coarse[:, i].reshape(gu.shape), where, order=3, mode="nearest")
+                for i in (0, 1)
+            ]
+        )
+    else:
+        ideal = pts
     plane = apply_homography(plane_from_ideal, ideal)
     x = plane[:, 0].reshape(h, w)
     y = plane[:, 1].reshape(h, w)
