@@ -66,12 +66,15 @@ def radau_grid(
     x0: FloatArray,
     extra_forcing: FloatArray | None = None,
     stages_out: FloatArray | None = None,
+    cache: dict[int, tuple[FloatArray, FloatArray, FloatArray]] | None = None,
 ) -> FloatArray:
     """One Radau IIA step between consecutive ``grid`` times; returns the states (T, m).
 
     ``extra_forcing`` (T - 1, 3, m), if given, is added to f at the stage times of every
     step (a forcing known only at those times, e.g. a nonlinear term from a previous
-    iterate). ``stages_out`` (T - 1, 3, m), if given, receives the stage values.
+    iterate). ``stages_out`` (T - 1, 3, m), if given, receives the stage values. ``cache``
+    (a dict, empty on the first call) keeps the factorised stage systems so that later calls
+    on the same grid and coefficients only pay for the new forcing.
     """
     m = x0.size
     h = np.diff(grid)
@@ -84,32 +87,45 @@ def radau_grid(
     for c0 in range(0, n_steps, _CHUNK):
         c1 = min(n_steps, c0 + _CHUNK)
         hs = h[c0:c1]
-        ts = starts[c0:c1, None] + hs[:, None] * RADAU_C[None, :]  # (k, 3)
         k = c1 - c0
-        a_mat, f_vec = coefficients(ts.ravel())
-        a_mat = a_mat.reshape(k, 3, m, m)
-        f_vec = f_vec.reshape(k, 3, m)
-        if extra_forcing is not None:
-            f_vec = f_vec + extra_forcing[c0:c1]
-        big = np.zeros((k, 3 * m, 3 * m))
-        rhs = np.empty((k, 3 * m, m + 1))
-        for i in range(3):
-            for j in range(3):
-                block = -(hs * RADAU_A[i, j])[:, None, None] * a_mat[:, j]
-                if i == j:
-                    block = block + eye
-                big[:, i * m : (i + 1) * m, j * m : (j + 1) * m] = block
-            rhs[:, i * m : (i + 1) * m, :m] = eye
-            rhs[:, i * m : (i + 1) * m, m] = hs[:, None] * np.einsum("j,kjm->km", RADAU_A[i], f_vec)
-        full = np.linalg.solve(big, rhs)
-        sol = full[:, 2 * m :, :]  # last stage = x_{k+1}
-        p_mat = np.ascontiguousarray(sol[:, :, :m])
-        g_vec = np.ascontiguousarray(sol[:, :, m])
+        if cache is not None and c0 in cache:
+            inv, zx, f_vec = cache[c0]
+        else:
+            ts = starts[c0:c1, None] + hs[:, None] * RADAU_C[None, :]  # (k, 3)
+            a_mat, f_vec = coefficients(ts.ravel())
+            a_mat = a_mat.reshape(k, 3, m, m)
+            f_vec = f_vec.reshape(k, 3, m)
+            big = np.zeros((k, 3 * m, 3 * m))
+            for i in range(3):
+                for j in range(3):
+                    block = -(hs * RADAU_A[i, j])[:, None, None] * a_mat[:, j]
+                    if i == j:
+                        block = block + eye
+                    big[:, i * m : (i + 1) * m, j * m : (j + 1) * m] = block
+        forcing = f_vec if extra_forcing is None else f_vec + extra_forcing[c0:c1]
+        col = (hs[:, None, None] * np.einsum("ij,kjm->kim", RADAU_A, forcing)).reshape(k, 3 * m)
+        if cache is None:
+            # one solve for the state columns and the forcing column together
+            full = np.linalg.solve(
+                big,
+                np.concatenate(
+                    [np.broadcast_to(np.tile(eye, (3, 1)), (k, 3 * m, m)), col[:, :, None]], axis=2
+                ),
+            )
+            zx, zf = full[:, :, :m], full[:, :, m]
+        else:
+            if c0 not in cache:
+                inv = np.asarray(np.linalg.inv(big), dtype=float)
+                zx = inv @ np.tile(eye, (3, 1))[None]  # (k, 3m, m)
+                cache[c0] = (inv, zx, f_vec)
+            zf = np.matmul(inv, col[:, :, None])[:, :, 0]
+        p_mat = np.ascontiguousarray(zx[:, 2 * m :, :])  # last stage = x_{k+1}
+        g_vec = np.ascontiguousarray(zf[:, 2 * m :])
         for s in range(k):
             x = p_mat[s] @ x + g_vec[s]
             states[c0 + s + 1] = x
         if stages_out is not None:
-            y = np.einsum("kij,kj->ki", full[:, :, :m], states[c0:c1]) + full[:, :, m]
+            y = np.einsum("kij,kj->ki", zx, states[c0:c1]) + zf
             stages_out[c0:c1] = y.reshape(k, 3, m)
     if not np.all(np.isfinite(states)):
         raise SolverError("the Radau IIA recursion produced non-finite values")
