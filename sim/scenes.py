@@ -36,6 +36,7 @@ from sim.four_bar import (
     FourBar,
 )
 from sim.modal import ModalModel, modal_result, simulate_modal
+from sim.modal_nonlinear import simulate_modal_nonlinear
 from sim.modes import clamped_free_eigenvalues, mode_shapes, natural_frequencies_rad_s
 from sim.result import SimResult
 from sim.rigid import simulate_rigid
@@ -82,13 +83,15 @@ def _dynamic(
     gauges: Sequence[float],
     n_modes: int,
     rtol: float | None,
+    nonlinear: bool = False,
 ) -> SimResult:
     """Run a dynamic model; ``rtol=None`` leaves each model at its own default (modal 1e-6,
-    fe 1e-6, auto tol 1e-4)."""
+    fe 1e-6, auto tol 1e-4). ``nonlinear`` selects the third-order modal model."""
     if model == "rigid":
         return simulate_rigid(beam, drive, t, gauge_positions_m=gauges)
     if model == "modal":
-        return simulate_modal(
+        simulate = simulate_modal_nonlinear if nonlinear else simulate_modal
+        return simulate(
             beam,
             drive,
             t,
@@ -134,6 +137,7 @@ def reciprocating(
     output_rate_hz: float = 400.0,
     n_modes: int = 4,
     rtol: float | None = None,
+    nonlinear: bool = False,
 ) -> SceneRun:
     """The bench's reciprocating beam from rest: the paper's sinusoid (Eq. 53) or the
     four-bar's true output at ``linkage.crank_frequency_hz``."""
@@ -158,6 +162,7 @@ def reciprocating(
         gauges=gauge_positions_m,
         n_modes=n_modes,
         rtol=rtol,
+        nonlinear=nonlinear,
     )
     return SceneRun(res, {"drive": drive, "a0_per_s": a0_per_s, "a1_s": a1_s})
 
@@ -287,6 +292,7 @@ def spin_up(
     stiffening: bool = True,
     output_rate_hz: float = 100.0,
     rtol: float | None = None,
+    nonlinear: bool = False,
 ) -> SceneRun:
     """The Kane / Simo-Vu-Quoc spin-up beam (``sim.beam.spin_up_beam``, no hub offset)."""
     beam = spin_up_beam()
@@ -297,7 +303,18 @@ def spin_up(
             beam, hub, t, n_modes=n_modes, stiffening=False, rtol=1e-6 if rtol is None else rtol
         )
     else:
-        res = _dynamic(model, beam, hub, t, a0=0.0, a1=0.0, gauges=(), n_modes=n_modes, rtol=rtol)
+        res = _dynamic(
+            model,
+            beam,
+            hub,
+            t,
+            a0=0.0,
+            a1=0.0,
+            gauges=(),
+            n_modes=n_modes,
+            rtol=rtol,
+            nonlinear=nonlinear,
+        )
     return SceneRun(res, {"omega_rad_s": omega_rad_s, "ramp_s": ramp_s})
 
 

@@ -84,6 +84,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--n-modes", type=int, default=None, metavar="N", help="modal model: number of modes"
     )
     p.add_argument(
+        "--nonlinear",
+        action="store_true",
+        help="modal model: keep the geometric nonlinearity to third order",
+    )
+    p.add_argument(
         "--rtol",
         type=_finite,
         default=None,
@@ -154,6 +159,7 @@ def _run_scene(args: argparse.Namespace, rig: Rig) -> scenes.SceneRun:
             model=args.model,
             gauge_positions_m=gauges,
             rtol=args.rtol,
+            nonlinear=args.nonlinear,
             **_kw(args),
         )
     if args.scene == "static":
@@ -186,6 +192,7 @@ def _run_scene(args: argparse.Namespace, rig: Rig) -> scenes.SceneRun:
             model=args.model,
             stiffening=not args.no_stiffening,
             rtol=args.rtol,
+            nonlinear=args.nonlinear,
             **_kw(args),
         )
     if args.scene == "falling-body":
