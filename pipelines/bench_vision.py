@@ -214,6 +214,10 @@ def _evaluate(frames: list[Frame], method: str) -> dict[str, float]:
 
 
 def run(quick: bool) -> int:
+    import cv2
+
+    # Both methods on one core (OpenCV would otherwise spread the paper's filters).
+    cv2.setNumThreads(1)
     n = 6 if quick else 24
     print(f"beambench bench vision: seeded rendered 2048x1536 frames ({n} per set)")
     print(

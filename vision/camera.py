@@ -56,6 +56,8 @@ def check_intrinsics(
     d = None
     if distortion is not None:
         d = np.asarray(distortion, dtype=np.float64).ravel()
+        if d.size == 0:
+            return k, None
         if d.size not in (4, 5, 8, 12, 14) or not np.all(np.isfinite(d)):
             raise ValueError(
                 f"distortion must have 4, 5, 8, 12 or 14 finite OpenCV coefficients, got {d.size}"

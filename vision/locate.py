@@ -141,7 +141,7 @@ def locate(
 ) -> Rough:
     """Find the beam around the pivot and follow it to the tip and back over the hub."""
     r1, r2 = 0.25 * beam_length, 0.45 * beam_length
-    step = max(0.4 * px_m, beam_width / 40)
+    step = max(0.8 * px_m, beam_width / 16)
     c1 = _circle_candidates(image, to_px, r1, beam_width, step)
     c2 = _circle_candidates(image, to_px, r2, beam_width, step)
     best = None
@@ -157,9 +157,9 @@ def locate(
     p2 = r2 * np.array([np.cos(a2), np.sin(a2)])
     d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
     outward = _follow(
-        image, to_px, p2, d0, beam_width, 3.0 * beam_width, beam_length * 0.7, px_m, 2.5
+        image, to_px, p2, d0, beam_width, 5.0 * beam_width, beam_length * 0.7, px_m, 2.5
     )
-    inward = _follow(image, to_px, p1, -d0, beam_width, 5.0 * beam_width, beam_length, px_m, 0.8)
+    inward = _follow(image, to_px, p1, -d0, beam_width, 5.0 * beam_width, beam_length, px_m, 1.4)
     pts_in, widths_in = inward
     wide = np.flatnonzero(widths_in > 1.35 * beam_width)
     if wide.size < 2:
@@ -220,29 +220,30 @@ def _follow(
     px_m: float,
     step_widths: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Follow a bright strip from ``start`` along ``direction`` until it ends."""
+    """Follow a bright strip from ``start`` along ``direction`` until it ends.
+
+    All cross-profiles (perpendicular to ``direction``, +-``half_m``) are sampled in one
+    call; the strip is then followed through them, each search starting where the last
+    crossing was."""
     step = max(step_widths * width, 4 * px_m)
-    pts, widths = [], []
-    p, d = start.copy(), direction.copy()
-    travelled = 0.0
-    prev_w = width
-    while travelled < max_len:
-        q = p + step * d
-        n = np.array([-d[1], d[0]])
-        v, offs = profile(image, to_px, q, n, max(half_m, 2.5 * prev_w), 0.75 * px_m)
-        s = find_strip(v, offs, 0.0, near=0.6 * max(prev_w, width))
-        if s is None or s.width < 0.5 * width or abs(s.centre) > 0.7 * max(prev_w, width):
+    ts = np.arange(step, max_len + step / 2, step)
+    n = np.array([-direction[1], direction[0]])
+    offs = np.arange(-half_m, half_m + 0.375 * px_m, 0.75 * px_m)
+    pts = (
+        start[None, None, :]
+        + ts[:, None, None] * direction[None, None, :]
+        + offs[None, :, None] * n[None, None, :]
+    )
+    vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
+    out_pts, widths = [], []
+    expect, prev_w = 0.0, width
+    for k in range(len(ts)):
+        s = find_strip(vals[k], offs, expect, near=0.6 * max(prev_w, width))
+        if s is None or s.width < 0.5 * width or abs(s.centre - expect) > 0.7 * max(prev_w, width):
             break
-        q = q + s.centre * n
-        pts.append(q)
+        out_pts.append(start + ts[k] * direction + s.centre * n)
         widths.append(s.width)
-        newd = q - p
-        newd /= np.linalg.norm(newd)
-        d = 0.5 * (d + newd)
-        d /= np.linalg.norm(d)
-        p = q
-        prev_w = s.width
-        travelled += step
-    if not pts:
+        expect, prev_w = s.centre, s.width
+    if not out_pts:
         return np.zeros((0, 2)), np.zeros(0)
-    return np.array(pts), np.array(widths)
+    return np.array(out_pts), np.array(widths)

@@ -55,6 +55,8 @@ class FrameMeasurement:
     clamp_plane_m, tip_plane_m : (2,) where the free beam begins / the tip's end centre.
     hub_width_m, beam_width_m : widths measured in the frame.
     edge_rms_m : RMS residual of the beam edge fits.
+    hub_angle_std_rad, tip_lateral_std_m : standard uncertainties predicted from the edge
+        fits' residuals (noise only; calibration errors are not included).
     blur_px : median ramp width of the beam's edges along the scan lines, px (motion blur
         widens it; frames beyond ``max_blur_px`` are flagged).
     """
@@ -75,6 +77,8 @@ class FrameMeasurement:
     beam_width_m: float = math.nan
     edge_rms_m: float = math.nan
     blur_px: float = math.nan
+    hub_angle_std_rad: float = math.nan
+    tip_lateral_std_m: float = math.nan
     method: str = "default"
 
     def to_dict(self) -> dict[str, object]:
@@ -115,6 +119,7 @@ class Measurer:
         max_blur_px: float = 9.0,
         edge_estimator: str = "area",
         max_root_slope_rad: float = 0.01,
+        max_tip_std_m: float = 0.3e-3,
     ) -> None:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
@@ -130,6 +135,7 @@ class Measurer:
         self.max_blur_px = float(max_blur_px)
         self.edge_estimator = edge_estimator
         self.max_root_slope_rad = float(max_root_slope_rad)
+        self.max_tip_std_m = float(max_tip_std_m)
         self._h = calibration.fit.matrix
         self._h_inv = np.linalg.inv(self._h)
         self._k = calibration.camera_matrix
@@ -186,7 +192,7 @@ class Measurer:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
         rough = locate(image, self.to_px, length, w_beam, self.px_m)
-        e, n, back_a, axis_b, hub_w = self._hub_axis(image, rough)
+        e, n, back_a, axis_b, hub_w, sd_hub = self._hub_axis(image, rough)
         # Clamp: the hub's end face, on its shoulders either side of the beam.
         origin0 = rough.clamp - ((rough.clamp @ n) - axis_b) * n
         a_clamp = self._end_face(image, origin0, e, n, hub_w, w_beam)
@@ -210,6 +216,16 @@ class Measurer:
             raise FrameFailure(
                 f"beam length {arc * 1e3:.0f} mm along the centre line disagrees with "
                 f"{length * 1e3:.0f} mm (occluded or out of view?)"
+            )
+        # Predicted noise of the tip's lateral deflection: hub direction carried to the
+        # tip, and the end value of a degree-d polynomial fit (leverage ~ (d+1)^2 / N).
+        n_pts = len(la) + len(lb)
+        sd_fit = rms * (self.poly_degree + 1) / math.sqrt(n_pts)
+        sd_tip = math.hypot(sd_hub * length, sd_fit)
+        if sd_tip > self.max_tip_std_m:
+            raise FrameFailure(
+                f"too noisy: tip lateral uncertainty {sd_tip * 1e3:.2f} mm "
+                f"(edge scatter {rms * 1e3:.2f} mm; low contrast?)"
             )
         root_slope = float(centre.deriv(np.array([0.0]))[0])
         if abs(root_slope) > self.max_root_slope_rad:
@@ -239,6 +255,8 @@ class Measurer:
             clamp_plane_m=clamp,
             tip_plane_m=line_m[-1].copy(),
             hub_width_m=hub_w,
+            hub_angle_std_rad=sd_hub,
+            tip_lateral_std_m=sd_tip,
             beam_width_m=width,
             edge_rms_m=rms,
             blur_px=blur,
@@ -270,8 +288,9 @@ class Measurer:
 
     def _hub_axis(
         self, image: NDArray[np.uint8], rough: Rough
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float, float]:
-        """Hub axis from its two edges fitted as parallel lines in the plane."""
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float, float, float]:
+        """Hub axis from its two edges fitted as parallel lines in the plane; the last
+        value is the standard uncertainty of its direction (rad)."""
         d = rough.clamp - rough.hub_back
         length = float(np.linalg.norm(d))
         if length < max(20 * self.px_m, 2.0 * rough.hub_width):
@@ -300,7 +319,13 @@ class Measurer:
         ba, bb = float(pa.mean(axis=0) @ n), float(pb.mean(axis=0) @ n)
         axis_b = 0.5 * (ba + bb)
         back_a = float((rough.hub_back - rough.clamp) @ e)
-        return e, n, back_a, axis_b, abs(ba - bb)
+        # Direction uncertainty of the common-direction fit: residual / spread along it.
+        ca, cb = pa.mean(axis=0), pb.mean(axis=0)
+        res = np.concatenate([(pa - ca) @ n, (pb - cb) @ n])
+        spread = float(np.sum(((pa - ca) @ e) ** 2) + np.sum(((pb - cb) @ e) ** 2))
+        dof = max(len(res) - 3, 1)
+        sd = math.sqrt(float(np.sum(res**2)) / dof / max(spread, 1e-18))
+        return e, n, back_a, axis_b, abs(ba - bb), sd
 
     def _end_face(
         self,
