@@ -55,3 +55,46 @@ def test_bad_intrinsics_are_refused() -> None:
         check_intrinsics(None, np.array([0.1, 0, 0, 0]))
     with pytest.raises(ValueError, match="focal_length_px"):
         camera_matrix(-1.0, 10, 10)
+
+
+def test_checkerboard_calibration_recovers_the_focal_length() -> None:
+    """Views of a flat 9x6 board through a known pinhole camera (homography warps)."""
+    import math
+
+    import cv2
+
+    from vision.camera import calibrate_checkerboard
+    from vision.config import CameraPoseConfig
+    from vision.pose import camera_extrinsics, ideal_from_plane
+
+    sq_px, cols, rows = 40, 10, 7  # squares; 9 x 6 inner corners
+    board = np.kron((np.indices((rows, cols)).sum(axis=0) % 2), np.ones((sq_px, sq_px)))
+    board = np.pad(board * 200 + 30, sq_px, constant_values=230).astype(np.uint8)
+    k = camera_matrix(900.0, 800, 600)
+    sq_m = 0.03
+    # board pixel (u, v) -> plane metres, centred
+    to_m = np.array(
+        [
+            [sq_m / sq_px, 0, -sq_m * (cols / 2 + 1)],
+            [0, -sq_m / sq_px, sq_m * (rows / 2 + 1)],
+            [0, 0, 1],
+        ]
+    )
+    views = []
+    for tilt, az in ((0.3, 0.0), (0.4, 1.6), (0.35, 3.0), (0.45, 4.4), (0.25, 5.5)):
+        pose = CameraPoseConfig(
+            distance_m=0.9, target_m=(0.0, 0.0), tilt_rad=tilt, tilt_azimuth_rad=az
+        )
+        r, t = camera_extrinsics(pose)
+        h = ideal_from_plane(k, r, t) @ to_m
+        views.append(
+            cv2.warpPerspective(board, h, (800, 600), flags=cv2.INTER_AREA, borderValue=230)
+        )
+    mat, dist, rms = calibrate_checkerboard(views, (cols - 1, rows - 1), sq_m)
+    assert np.all(np.abs(dist[:2]) < 0.1)  # no lens distortion was applied
+    assert rms < 0.5
+    assert mat[0, 0] == pytest.approx(900.0, rel=0.02)
+    assert mat[1, 1] == pytest.approx(900.0, rel=0.02)
+    assert math.hypot(mat[0, 2] - 399.5, mat[1, 2] - 299.5) < 15
+    with pytest.raises(ValueError, match="at least 3"):
+        calibrate_checkerboard(views[:2], (cols - 1, rows - 1), sq_m)
