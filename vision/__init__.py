@@ -5,7 +5,11 @@ only; imports neither ``sim`` nor ``daq``."""
 from vision.calibration import Calibration, load_calibration, plane_to_image_px
 from vision.decode import decode
 from vision.measure import FrameMeasurement, Measurer
-from vision.registration import calibration_from_registration, detect_registration_corners
+from vision.registration import (
+    calibration_from_registration,
+    detect_registration_corners,
+    detect_registration_points,
+)
 
 __all__ = [
     "Calibration",
@@ -14,6 +18,7 @@ __all__ = [
     "calibration_from_registration",
     "decode",
     "detect_registration_corners",
+    "detect_registration_points",
     "load_calibration",
     "plane_to_image_px",
 ]
