@@ -144,7 +144,7 @@ def simulate_fe(
     rtol: float = 1e-6,
     atol: float = 1e-9,
     initial_state: ArrayLike | None = None,
-    method: str = "BDF",
+    method: str = "auto",
 ) -> SimResult:
     """Simulate the beam clamped to a hub whose rotation ``drive`` prescribes.
 
@@ -165,8 +165,10 @@ def simulate_fe(
     initial_state : (2 n,) state ``[coordinates, rates]`` of the unprescribed coordinates,
         e.g. ``result.settings["final_state"]`` of an earlier run with the same
         formulation and ``n_elements``.
-    method : "BDF" (default: variable order 1-5, the fewest Jacobians here), "Radau"
-        (order 5, L-stable) or "LSODA".
+    method : "auto" (default), "BDF", "Radau" or "LSODA". "auto" takes BDF (variable
+        order, the fewest Jacobians) when stiffness-proportional damping makes the stiff
+        modes decay, and Radau IIA (order 5, A- and L-stable) when ``a1_s == 0``: undamped
+        stiff axial modes make high-order BDF crawl (it is not A-stable).
 
     Returns
     -------
@@ -202,6 +204,8 @@ def simulate_fe(
                 f"initial_state must be {system.n_state} finite numbers for formulation "
                 f"{form!r} with {ne} elements, got shape {np.shape(initial_state)}"
             )
+    if method == "auto":
+        method = "BDF" if a1 > 0.0 else "Radau"
     traj = integrate(system.rhs, system.jac, t, y0, rtol=rt, atol=at, method=method)
     stations = np.linspace(0.0, beam.length_m, ns)
     lat, lon, strain = _deflections(system, traj.y, beam, stations, gauges)
@@ -242,20 +246,25 @@ def _static_newton(
     x = x0.copy()
     for k in range(1, n_steps + 1):
         lam = k / n_steps
+        dx_prev = math.inf
         for _ in range(100):
             res, kt = residual_and_tangent(x, lam)
             dx = np.linalg.solve(kt, -res)
-            if merit is not None:
+            size = max(1e-12, float(np.max(np.abs(x))))
+            dx_max = float(np.max(np.abs(dx)))
+            step = 1.0
+            if merit is not None and dx_max > 1e-3 * size:
                 m0 = merit(x, lam)
-                step = 1.0
                 while step > 1e-6 and merit(x + step * dx, lam) > m0 + 1e-12 * abs(m0):
                     step *= 0.5
-                dx = step * dx
-            x = x + dx
+            x = x + step * dx
             if not np.all(np.isfinite(x)):
                 raise StaticSolveError(f"non-finite state at load step {k}/{n_steps}")
-            if np.max(np.abs(dx)) <= 1e-12 * max(1e-9, float(np.max(np.abs(x)))):
-                break
+            if step == 1.0 and (
+                dx_max <= 1e-10 * size or (dx_max <= 1e-7 * size and dx_max >= 0.5 * dx_prev)
+            ):
+                break  # converged, or stagnating at round-off
+            dx_prev = dx_max if step == 1.0 else math.inf
         else:
             raise StaticSolveError(f"Newton did not converge at load step {k}/{n_steps}")
     return x

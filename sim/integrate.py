@@ -75,8 +75,22 @@ def integrate(
     kwargs["jac"] = jac
     if first_step_s is not None:
         kwargs["first_step"] = first_step_s
+
+    def checked_rhs(t_s: float, y_now: FloatArray) -> FloatArray:
+        out = rhs(t_s, y_now)
+        if not np.isfinite(out).all():
+            raise IntegrationError(method, t_s, "the right-hand side is not finite")
+        return out
+
+    def checked_jac(t_s: float, y_now: FloatArray) -> FloatArray:
+        out = jac(t_s, y_now)
+        if not np.isfinite(out).all():
+            raise IntegrationError(method, t_s, "the Jacobian is not finite")
+        return out
+
+    kwargs["jac"] = checked_jac
     t0 = time.perf_counter()
-    sol = solve_ivp(rhs, (float(t[0]), float(t[-1])), y_start, method=method, **kwargs)
+    sol = solve_ivp(checked_rhs, (float(t[0]), float(t[-1])), y_start, method=method, **kwargs)
     wall = time.perf_counter() - t0
     if sol.status != 0:
         t_fail = float(sol.t[-1]) if sol.t.size else float(t[0])
