@@ -1,0 +1,13 @@
+"""Simulator benchmark: the same table as ``beambench bench sim [--quick]``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from pipelines.bench_sim import run
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="a short smoke run")
+    sys.exit(run(quick=parser.parse_args().quick))
