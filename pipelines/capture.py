@@ -435,7 +435,9 @@ def _loop(
         if t_last + 1e9 / rate >= end_ns:
             break
     if reader is not None and not camera_done:
-        deadline = time.monotonic() + 10.0
+        # In real time the camera has 10 s to hand over its last frames; a fake camera
+        # that renders slower than real time is waited for (it always finishes).
+        deadline = time.monotonic() + (10.0 if reader.realtime else math.inf)
         while not _drain(reader, writer, pending, end_ns, c, wait=True):
             if time.monotonic() > deadline:
                 writer.write_event(

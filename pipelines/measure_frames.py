@@ -8,6 +8,7 @@ boundaries. Results come back in frame order.
 from __future__ import annotations
 
 import logging
+import multiprocessing
 import os
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -82,8 +83,11 @@ def measure_frames(
             if progress:
                 progress(1)
         return out
+    # Spawned, not forked: a fork copies the threads of rerun and the log reader
+    # half-way through whatever they hold, and the children can hang.
     with ProcessPoolExecutor(
         max_workers=n_workers,
+        mp_context=multiprocessing.get_context("spawn"),
         initializer=_init_worker,
         initargs=(calibration, stations_m, method),
     ) as pool:

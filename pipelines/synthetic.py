@@ -119,7 +119,6 @@ class SyntheticBench:
             noise_dn=rig.synthetic.image_noise_dn,
             seed=self.seed,
         )
-        self._render_rng = np.random.default_rng(self.seed + 1)
         # Tip travel per second at the fastest, in pixels, sets the motion-blur sampling.
         tip_speed_m_s = float(np.max(np.abs(np.gradient(result.hub_angle_rad, t_sim))))
         tip_speed_m_s *= rig.beam.pivot_to_tip_m
@@ -148,7 +147,9 @@ class SyntheticBench:
         """One encoded frame exposed over [t_start_s, t_start_s + exposure_s]."""
         n = self.blur_samples
         times = t_start_s + exposure_s * (np.arange(n) + 0.5) / n
-        frame = render_frame(self.scene, [self.pose(float(t)) for t in times], rng=self._render_rng)
+        # Seeded per frame, not from a shared generator: frames render in worker threads.
+        rng = np.random.default_rng([self.seed + 1, round(t_start_s * 1e6)])
+        frame = render_frame(self.scene, [self.pose(float(t)) for t in times], rng=rng)
         cam = self.rig.camera
         return encode(frame.image, cam.encoding, cam.jpeg_quality)
 
@@ -249,6 +250,8 @@ def build_synthetic(
         clock_jitter_s=syn.clock_jitter_s,
         seed=bench.seed + 2,
         realtime=realtime,
+        # rendering (~55 ms a frame at full size) runs ahead on both cores
+        render_workers=2,
     )
     return SyntheticDevices(daq_device, camera, bench.camera_info(), bench)
 

@@ -14,6 +14,7 @@ Motion blur averages the coverage of several poses over the exposure.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -153,6 +154,9 @@ class SceneSpec:
     draw_registration: bool = True
     stations_m: tuple[float, ...] = DEFAULT_STATIONS_M
     _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
+    _cache_lock: threading.Lock = field(
+        default_factory=threading.Lock, init=False, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         for name in ("beam_length_m", "beam_width_m", "hub_length_m", "hub_width_m"):
@@ -228,8 +232,9 @@ class SceneSpec:
 
     # -- cached rasters ---------------------------------------------------------------
     def _static(self) -> dict[str, Any]:
-        if not self._cache:
-            self._cache.update(_build_static(self))
+        with self._cache_lock:  # frames may render in several threads
+            if not self._cache:
+                self._cache.update(_build_static(self))
         return self._cache
 
 

@@ -100,14 +100,17 @@ def test_clamped_free_frequencies_converge_at_h4(
     exact = _omega_exact(rig_beam)
     freqs = _frequencies_corot if formulation == "corot" else _frequencies_flxdyn
     errs = []
-    for ne in (6, 12, 24):
+    for ne in (3, 6, 12, 24):
         w = freqs(rig_beam, ne)
         # bending frequencies: the axial ones are far above (EA >> EI / L^2)
         errs.append([abs(w[np.argmin(np.abs(w - we))] - we) / we for we in exact])
     e = np.array(errs)
     assert e[-1].max() < 1e-5
+    # The asymptotic range: modes 2-3 need 6+ elements (3 are pre-asymptotic); the first
+    # mode's error at 24 elements (~3e-8) meets the eigensolver's round-off,
+    # eps * omega_axial_max^2 / omega_1^2, so its rate is taken over 3-6-12.
     for mode in range(3):
-        rates = _rate(list(e[:, mode]))
+        rates = _rate(list(e[:-1, mode] if mode == 0 else e[1:, mode]))
         assert np.all(rates > 3.8), (mode, rates)  # Hermite cubic, consistent mass: h^4
 
 
