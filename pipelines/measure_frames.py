@@ -69,7 +69,8 @@ def measure_frames(
 ) -> list[MeasuredFrame]:
     """Measure ``frames`` (objects with ``t_ns``, ``sequence``, ``data``) in order.
 
-    ``workers`` defaults to the number of cores; 1 measures in this process.
+    ``workers`` defaults to the number of cores; 1 measures in this process. Workers are
+    spawned, so a script calling this needs the usual ``if __name__ == "__main__":`` guard.
     """
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     items: Iterator[tuple[int, int, bytes]] = (
