@@ -71,11 +71,12 @@ def truth_notes(processed: Processed, devices: SyntheticDevices) -> list[str]:
     cam = devices.camera
     bench = devices.bench
     seq = np.array([f.sequence for f in processed.frames])
+    # exposure mid-points on the bench's clock; the results count from t_zero_ns
     t_true = np.array([cam.true_exposure_start_s(int(k)) for k in seq]) + 0.5 * cam.exposure_s
-    t_true -= float(ds.attrs.get("t_zero_ns", 0)) * 1e-9
+    t_zero_s = float(ds.attrs.get("t_zero_ns", 0)) * 1e-9
     ok = ds["frame_ok"].values.astype(bool)
     notes = []
-    dt_err = ds["frame_time"].values - t_true
+    dt_err = ds["frame_time"].values - (t_true - t_zero_s)
     notes.append(
         "Synthetic truth: camera clock offset "
         f"{CAMERA_CLOCK_OFFSET_S * 1e3:.1f} ms with "

@@ -29,6 +29,11 @@ from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 DEFAULT_RIG_NAME = "rig.toml"
 
 
+# reciprocating: the crank turns (the paper's dynamic runs); free_decay: the hub is held
+# still and the tip is released from a static deflection (the paper's damping runs, §5.2.1)
+SYNTHETIC_SCENES = ("reciprocating", "free_decay")
+
+
 @dataclass(frozen=True)
 class SyntheticConfig:
     """Imperfections of the built-in synthetic bench (fakes and rendered frames)."""
@@ -41,6 +46,9 @@ class SyntheticConfig:
     image_noise_dn: float = 2.0
     model: str = "auto"
     warmup_s: float = 6.0
+    scene: str = "reciprocating"
+    release_tip_m: float = 0.03
+    release_at_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -59,6 +67,16 @@ class SyntheticConfig:
             )
         if self.model not in ("auto", "rigid", "modal", "fe"):
             raise ValueError(f"model must be auto, rigid, modal or fe, got {self.model!r}")
+        if self.scene not in SYNTHETIC_SCENES:
+            raise ValueError(f"scene must be {' or '.join(SYNTHETIC_SCENES)}, got {self.scene!r}")
+        if not math.isfinite(self.release_tip_m) or not 0.0 < abs(self.release_tip_m) < 0.2:
+            raise ValueError(
+                f"release_tip_m must be within +/-0.2 m and not 0, got {self.release_tip_m!r}"
+            )
+        if not math.isfinite(self.release_at_s) or self.release_at_s < 0.0:
+            raise ValueError(
+                f"release_at_s must be a non-negative finite number, got {self.release_at_s!r}"
+            )
 
 
 SECTIONS: dict[str, type] = {

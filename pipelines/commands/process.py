@@ -30,6 +30,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="auto",
         help="simulation model driven by the measured hub angle",
     )
+    p.add_argument(
+        "--sim-tol",
+        type=float,
+        default=None,
+        metavar="REL",
+        help="relative tip error --model auto aims at (default 0.02: what the measurements "
+        "resolve; 1e-4 runs the exact beam)",
+    )
     p.add_argument("--workers", type=int, default=None, help="processes measuring frames")
     add_viewer_arguments(p)
 
@@ -54,10 +62,19 @@ def run(args: argparse.Namespace) -> int:
         check_output_folder(Path(args.rrd), "--rrd")
     if args.workers is not None and args.workers < 1:
         raise BeambenchError(f"--workers must be at least 1, got {args.workers}")
+    if args.sim_tol is not None and not (0.0 < args.sim_tol < 0.5):
+        raise BeambenchError(f"--sim-tol must be in (0, 0.5), got {args.sim_tol}")
     rig = load_rig(args.rig) if args.rig else None
     cal = Path(args.calibration) if args.calibration else None
+    from pipelines.process import SIM_TOL
+
     processed = process_run(
-        log_path, rig=rig, calibration_path=cal, model=args.model, workers=args.workers
+        log_path,
+        rig=rig,
+        calibration_path=cal,
+        model=args.model,
+        sim_tol=SIM_TOL if args.sim_tol is None else args.sim_tol,
+        workers=args.workers,
     )
     write_processed(processed, out)
     if args.rrd or args.spawn or args.connect:
