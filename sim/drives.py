@@ -109,12 +109,46 @@ class FourBarDrive:
         return np.asarray(fb.rocker_accel_rad_s2(psi, self.crank_speed_rad_s, 0.0))  # type: ignore[attr-defined]
 
 
+END_PAD_S = 0.2
+END_FIT_S = 0.15
+
+
+def _pad_ends(t: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The trace extended at both ends by a local cubic fit (see :class:`TraceDrive`)."""
+    span = float(t[-1] - t[0])
+    fit_s = min(END_FIT_S, 0.25 * span)
+    dt = span / max(t.size - 1, 1)
+    n_pad = int(round(min(END_PAD_S, span) / dt))
+    if n_pad < 1:
+        return t, y
+    pieces_t, pieces_y = [], []
+    for side in (0, 1):
+        near = t <= t[0] + fit_s if side == 0 else t >= t[-1] - fit_s
+        if near.sum() < 5:
+            return t, y
+        origin = t[0] if side == 0 else t[-1]
+        coef = np.polyfit(t[near] - origin, y[near], 3)
+        steps = dt * np.arange(1, n_pad + 1)
+        tt = origin - steps[::-1] if side == 0 else origin + steps
+        pieces_t.append(tt)
+        pieces_y.append(np.polyval(coef, tt - origin))
+    return (
+        np.concatenate([pieces_t[0], t, pieces_t[1]]),
+        np.concatenate([pieces_y[0], y, pieces_y[1]]),
+    )
+
+
 class TraceDrive:
     """A measured hub-angle trace (e.g. the 400 Hz potentiometer), smoothed.
 
     A cubic smoothing spline (``scipy.interpolate.make_smoothing_spline``) through the
     finite samples; its first and second derivatives are the rate and acceleration, so the
     three are consistent. NaN samples (gaps) are dropped.
+
+    A smoothing spline is natural: its acceleration is forced to zero at its ends, which
+    is wrong for a trace cut mid-swing (on the bench, 0.5 rad/s^2 ... 25 rad/s^2). So the
+    trace is extended by ``END_PAD_S`` at each end with a cubic fitted to its last
+    ``END_FIT_S``, and the natural end conditions act out there, beyond the data.
 
     Parameters
     ----------
@@ -144,7 +178,8 @@ class TraceDrive:
             raise ValueError(f"smoothing must be a non-negative number or None, got {smoothing!r}")
         self.t_min_s = float(t[ok][0])
         self.t_max_s = float(t[ok][-1])
-        self._spline = make_smoothing_spline(t[ok], y[ok], lam=smoothing)
+        tp, yp = _pad_ends(t[ok], y[ok])
+        self._spline = make_smoothing_spline(tp, yp, lam=smoothing)
         self._d1 = self._spline.derivative(1)
         self._d2 = self._spline.derivative(2)
 
