@@ -1,7 +1,8 @@
 """beambench bench: speed against error, one module per target.
 
-``pipelines.bench_sim``, ``pipelines.bench_vision`` and ``pipelines.bench_daq`` each
-provide ``run(quick: bool) -> int`` and print their table on stdout.
+``pipelines.bench_sim``, ``pipelines.bench_vision``, ``pipelines.bench_daq`` and
+``pipelines.bench_process`` each provide ``run(quick: bool) -> int`` and print their
+table on stdout.
 """
 
 from __future__ import annotations
@@ -11,9 +12,9 @@ import importlib
 
 from pipelines.commands._common import not_available
 
-HELP = "print speed against error for the simulator, vision or acquisition"
+HELP = "print speed against error for the simulator, vision, acquisition or processing"
 
-ISSUES = {"sim": 3, "vision": 5, "daq": 4}
+ISSUES = {"sim": 3, "vision": 5, "daq": 4, "process": 6}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
