@@ -127,5 +127,11 @@ def print_summary(processed: object, out: Path) -> None:
     ):
         if key in a:
             print(f"  {key} = {float(a[key]) * 1e3:.3f} mm")
+    if "free_decay_log_decrement" in a:
+        print(
+            f"  free decay from {float(a['free_decay_release_s']):.3f} s: "
+            f"log decrement {float(a['free_decay_log_decrement']):.4f}, "
+            f"a0 = a1 = {float(a['free_decay_a0_per_s_matched']):.3g}"
+        )
     t = processed.timings.as_dict()
     print("  time: " + ", ".join(f"{k[:-2]} {v:.2f} s" for k, v in t.items()))

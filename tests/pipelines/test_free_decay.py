@@ -116,3 +116,7 @@ def test_a_free_decay_run_is_processed_end_to_end(tmp_path: Path, rig: Rig) -> N
     truth = devices.bench.truth.tip_lateral_m(t[after] + ds.attrs["t_zero_ns"] * 1e-9)
     amp = float(np.max(np.abs(truth)))
     assert np.sqrt(np.mean((ds["sim_tip_lateral"].values[after] - truth) ** 2)) < 0.01 * amp
+    from pipelines.report import write_report
+
+    report = write_report(ds, tmp_path / "report", title="free decay").read_text()
+    assert "Damping from the free decay" in report
