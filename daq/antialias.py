@@ -9,6 +9,7 @@ have the filter's low-frequency group delay removed.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,10 @@ from daq.config import DaqConfig
 from daq.records import RawBlock
 
 GROUP_DELAY_REFERENCE_HZ = 1.0  # the bench's motion is ~1 Hz: delay is corrected there
+# Outputs are withheld after a (re)start until the start-up transient is below this
+# fraction of (slope x group delay): ~45 ms for the bench's filter, 0.03 microstrain at the
+# bench's fastest strain change (~4400 microstrain/s).
+SETTLE_REL = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,6 +60,23 @@ class AntiAliasDesign:
     def group_delay_ns(self) -> int:
         return round(self.group_delay_s * 1e9)
 
+    def settle_s(self, rel: float = SETTLE_REL) -> float:
+        """Time after a (re)start for the start-up transient to fall below ``rel``.
+
+        The filter restarts in the steady state of its first sample, as if the signal had
+        been constant before; for a signal moving at slope ``v`` the output is then off by
+        up to ``v * group_delay_s``, decaying with the filter's memory. This is the time
+        after which a unit ramp's error stays below ``rel * group_delay_s``.
+        """
+        fs = self.acquisition_rate_hz
+        n = max(16, round(20.0 * self.group_delay_s * fs))
+        t = np.arange(n) / fs
+        y, _ = signal.sosfilt(self.sos, t, zi=signal.sosfilt_zi(self.sos) * 0.0)
+        err = np.abs(y - (t - self.group_delay_s))
+        tail = np.maximum.accumulate(err[::-1])[::-1]
+        above = np.flatnonzero(tail >= rel * self.group_delay_s)
+        return float((above[-1] + 1) / fs) if above.size else 0.0
+
     def describe(self) -> dict[str, object]:
         """JSON-friendly summary for the run metadata."""
         return {
@@ -72,6 +94,9 @@ class AntiAliasDesign:
             "group_delay_reference_hz": GROUP_DELAY_REFERENCE_HZ,
             "timestamps": "group delay removed: t = acquisition time - group_delay_s",
             "initial_state": "steady state for the first sample",
+            "restart": "after a gap the filter restarts the same way",
+            "settle_s": self.settle_s(),
+            "settling": "outputs within settle_s of a (re)start are not emitted",
         }
 
 
@@ -147,8 +172,12 @@ class AntiAliasDecimator:
     Output samples are the filtered input samples whose acquisition sequence number is a
     multiple of ``decimation``, so the decimation phase is tied to the hardware sample
     count and survives block boundaries and dropped blocks. The filter starts in the
-    steady state of the first sample (no start-up transient on the potentiometer's DC).
-    Output samples whose corrected time would be negative are not emitted.
+    steady state of the first sample (no start-up transient on the potentiometer's DC),
+    and so does it again after a gap in the sequence numbers (a dropped block): carrying
+    the state across the jump would ring for ~0.1 s (85 microstrain on the bench).
+    Outputs within ``design.settle_s()`` of a (re)start, and those whose corrected time
+    would be negative, are not emitted: the stream's gaps are honest and what is emitted
+    has settled.
     """
 
     def __init__(self, design: AntiAliasDesign, n_channels: int = 5) -> None:
@@ -158,6 +187,8 @@ class AntiAliasDecimator:
         self.n_channels = n_channels
         self._zi: np.ndarray | None = None
         self._next_sequence: int | None = None
+        self._settle_n = math.ceil(design.settle_s() * design.acquisition_rate_hz)
+        self._emit_from_sequence = 0
 
     def process(self, t_ns: np.ndarray, volts: np.ndarray, first_sequence: int) -> DecimatedBlock:
         """Filter one block and return its decimated rows.
@@ -178,12 +209,15 @@ class AntiAliasDecimator:
         d = self.design.decimation
         if len(x) == 0:
             return DecimatedBlock(np.zeros(0, np.int64), x, first_sequence // d)
-        if self._zi is None:
+        if self._zi is None or first_sequence != self._next_sequence:
             zi0 = signal.sosfilt_zi(self.design.sos)  # (n_sections, 2)
             self._zi = zi0[:, :, None] * x[0][None, None, :]
+            self._emit_from_sequence = first_sequence + self._settle_n
         y, self._zi = signal.sosfilt(self.design.sos, x, axis=0, zi=self._zi)
         self._next_sequence = first_sequence + len(x)
-        offset = (-first_sequence) % d
+        # the first settled input whose sequence number is a multiple of d
+        skip = max(0, self._emit_from_sequence - first_sequence)
+        offset = skip + (-(first_sequence + skip)) % d
         keep = slice(offset, None, d)
         t_out = np.asarray(t_ns, dtype=np.int64)[keep] - np.int64(self.design.group_delay_ns)
         y_out = y[keep]
@@ -198,6 +232,7 @@ class AntiAliasDecimator:
         """Forget the filter state (the next block starts a new steady state)."""
         self._zi = None
         self._next_sequence = None
+        self._emit_from_sequence = 0
 
 
 def filter_and_decimate(design: AntiAliasDesign, block: RawBlock) -> DecimatedBlock:

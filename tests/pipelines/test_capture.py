@@ -83,7 +83,8 @@ def test_capture_then_replay_gives_identical_records(tmp_path: Path) -> None:
     run = read_run(out)
     want = expected_samples(20)
     assert run.samples == want  # bit-identical, group delay already removed from times
-    assert s.samples == len(want) == 800 - 5  # 5 samples fall before t = 0 after the delay
+    # the filter's first 45 ms (settling; it covers the 11.5 ms of group delay) are withheld
+    assert s.samples == len(want) == 800 - 18
     cam = make_camera()
     cam.start()
     truth = [cam.read_frame(1.0) for _ in range(30)]
@@ -142,7 +143,7 @@ def test_device_errors_end_or_degrade_the_run_cleanly(tmp_path: Path) -> None:
             realtime=False,
         )
     run = read_run(out)  # finished properly: readable without recover
-    assert len(run.samples) == 5 * 40 - 5
+    assert len(run.samples) == 5 * 40 - 18  # the filter's first 45 ms are withheld
     assert [e.name for e in run.events][-2:] == ["device_error", "stop"]
     s = capture_run(
         RIG,
@@ -152,7 +153,7 @@ def test_device_errors_end_or_degrade_the_run_cleanly(tmp_path: Path) -> None:
         1.0,
         realtime=False,
     )
-    assert s.frames == 3 and s.device_errors == 3 and s.samples == 395
+    assert s.frames == 3 and s.device_errors == 3 and s.samples == 400 - 18
 
 
 def test_output_path_problems_are_clear_errors(tmp_path: Path) -> None:
@@ -173,7 +174,7 @@ def test_realtime_capture_keeps_up_without_drops(tmp_path: Path) -> None:
         RIG, make_daq(realtime=True), make_camera(realtime=True), out, 0.6, realtime=True
     )
     assert (s.dropped_samples, s.dropped_frames, s.overruns) == (0, 0, 0)
-    assert s.samples == 240 - 5 and s.frames == 9
+    assert s.samples == 240 - 18 and s.frames == 9
     assert 0.55 < s.wall_time_s < 3.0
 
 
