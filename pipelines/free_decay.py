@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -241,20 +241,11 @@ def simulate_release(
         atol=1e-12,
     )
 
-    def whole(x: FloatArray) -> FloatArray:
-        # x[0] is the release state, held until then
-        return np.concatenate([np.repeat(x[:1], k_rel, axis=0), x[1:]], axis=0)
-
-    return SimResult(
-        time_s=t,
-        hub_angle_rad=whole(after.hub_angle_rad),
-        tip_lateral_m=whole(after.tip_lateral_m),
-        tip_longitudinal_m=whole(after.tip_longitudinal_m),
-        stations_m=after.stations_m,
-        station_lateral_m=whole(after.station_lateral_m),
-        station_longitudinal_m=whole(after.station_longitudinal_m),
-        gauge_positions_m=after.gauge_positions_m,
-        strain=whole(after.strain),
+    # the release state held until then; the release instant itself is not on the grid
+    whole = after.held_before(t[:k_rel])
+    whole = whole.rows(np.r_[0:k_rel, k_rel + 1 : whole.time_s.size])
+    return replace(
+        whole,
         model=f"{after.model} (free decay from the measured release)",
         wall_time_s=after.wall_time_s,
         settings={**after.settings, "release_s": decay.release_s, "a0_per_s": a, "a1_s": a},

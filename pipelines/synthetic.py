@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -239,21 +239,8 @@ def _simulate_free_decay(
     )
     # the held part: the release state repeated back to 0.5 s before the run starts
     t_held = np.arange(-0.5, release, 1.0 / _SIM_RATE_HZ)
-    k = t_held.size
-
-    def held(a: FloatArray) -> FloatArray:
-        return np.concatenate([np.repeat(a[:1], k, axis=0), a], axis=0)
-
-    return SimResult(
-        time_s=np.concatenate([t_held, res.time_s]),
-        hub_angle_rad=held(res.hub_angle_rad),
-        tip_lateral_m=held(res.tip_lateral_m),
-        tip_longitudinal_m=held(res.tip_longitudinal_m),
-        stations_m=res.stations_m,
-        station_lateral_m=held(res.station_lateral_m),
-        station_longitudinal_m=held(res.station_longitudinal_m),
-        gauge_positions_m=res.gauge_positions_m,
-        strain=held(res.strain),
+    return replace(
+        res.held_before(t_held),
         model=f"{res.model} (free decay)",
         wall_time_s=res.wall_time_s,
         settings={**res.settings, "release_at_s": release, "release_tip_m": syn.release_tip_m},
@@ -261,7 +248,6 @@ def _simulate_free_decay(
 
 
 def _shift(result: SimResult, dt_s: float) -> SimResult:
-    from dataclasses import replace
 
     return replace(result, time_s=result.time_s + dt_s)
 

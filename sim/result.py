@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
 
@@ -65,3 +65,36 @@ class SimResult:
         g = self.gauge_positions_m.shape[0]
         if self.strain.shape != (n, g):
             raise ValueError(f"strain must have shape ({n}, {g}), got {self.strain.shape}")
+
+    # -- row operations (per output time) -------------------------------------------------
+    _PER_TIME = (
+        "time_s",
+        "hub_angle_rad",
+        "tip_lateral_m",
+        "tip_longitudinal_m",
+        "station_lateral_m",
+        "station_longitudinal_m",
+        "strain",
+    )
+
+    def rows(self, index: ArrayLike | slice) -> SimResult:
+        """The result at a subset of its output times (``index`` into ``time_s``)."""
+        from dataclasses import replace
+
+        new: dict[str, Any] = {k: getattr(self, k)[index] for k in self._PER_TIME}
+        return replace(self, **new)
+
+    def held_before(self, t_before_s: ArrayLike) -> SimResult:
+        """This result with its first state held still at the earlier times ``t_before_s``
+        (a beam held deflected until it is released)."""
+        from dataclasses import replace
+
+        t = np.asarray(t_before_s, dtype=float).reshape(-1)
+        if t.size and not t[-1] < self.time_s[0]:
+            raise ValueError("t_before_s must all be earlier than the result's first time")
+        new: dict[str, Any] = {
+            k: np.concatenate([np.repeat(getattr(self, k)[:1], t.size, axis=0), getattr(self, k)])
+            for k in self._PER_TIME
+            if k != "time_s"
+        }
+        return replace(self, time_s=np.concatenate([t, self.time_s]), **new)
