@@ -22,11 +22,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.polynomial import legendre
 from numpy.typing import NDArray
 
 from vision.calibration import Calibration
 from vision.camera import distort_points_px, undistort_points_px
+from vision.centreline import (
+    CentreLine,
+    arc_length,
+    correlation_inflation,
+    fit_centreline,
+    stations_to_a,
+)
 from vision.edges import strip_edges
 from vision.homography import apply_homography
 from vision.locate import FrameFailure, Rough, locate
@@ -35,6 +41,9 @@ from vision.sampling import bilinear, edge_moment
 log = logging.getLogger(__name__)
 
 METHODS = ("default", "paper")
+#: Hub edge points are taken this many pixels clear of the hub's end faces (the scan
+#: window and the blur reach that far).
+_END_MARGIN_PX = 10.0
 _NAN2 = np.full(2, np.nan)
 
 
@@ -115,9 +124,9 @@ class Measurer:
         *,
         stations_m: Sequence[float] = (0.005, 0.204, 0.403, 0.603),
         method: str = "default",
-        poly_degree: int = 7,
+        poly_degree: int = 8,
         max_blur_px: float = 9.0,
-        edge_estimator: str = "area",
+        edge_estimator: str = "erf",
         max_root_slope_rad: float = 0.01,
         max_tip_std_m: float = 0.3e-3,
     ) -> None:
@@ -192,14 +201,31 @@ class Measurer:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
         rough = locate(image, self.to_px, length, w_beam, self.px_m)
-        e, n, back_a, axis_b, hub_w, sd_hub = self._hub_axis(image, rough)
+        # The hub's axis: first between the rough ends (kept well clear of them), then
+        # again over its whole length once both end faces are found (the direction's
+        # noise falls as length^-1.5).
+        margin = min(
+            0.5 * rough.hub_width, 0.3 * float(np.linalg.norm(rough.clamp - rough.hub_back))
+        )
+        e, n, axis_b, hub_w, sd_hub = self._hub_axis(
+            image, rough.hub_back, rough.clamp, rough.hub_width, margin, estimator="area"
+        )
         # Clamp: the hub's end face, on its shoulders either side of the beam.
         origin0 = rough.clamp - ((rough.clamp @ n) - axis_b) * n
         a_clamp = self._end_face(image, origin0, e, n, hub_w, w_beam)
         clamp = origin0 + a_clamp * e
+        back_a = self._back_face(image, clamp, e, n, hub_w, float((rough.hub_back - clamp) @ e))
+        e, n, axis_b, hub_w, sd_hub = self._hub_axis(
+            image, clamp + back_a * e, clamp, hub_w, _END_MARGIN_PX * self.px_m
+        )
+        clamp = clamp - ((clamp @ n) - axis_b) * n
         # Beam edges in the hub frame (a from the clamp along e, b along n).
         la, lb, blur = self._beam_edges(image, rough, clamp, e, n, w_beam, length, hub_w)
-        la, lb, rms, width = self._fit_edges(la, lb)
+        amax = float(max(la[:, 0].max(), lb[:, 0].max()))
+        fit = fit_centreline(la, lb, self.poly_degree, amax)
+        if isinstance(fit, str):
+            raise FrameFailure(fit)
+        centre, rms, width = fit.centre, fit.rms, fit.width
         if abs(width - w_beam) > 0.15 * w_beam:
             raise FrameFailure(
                 f"beam width {width * 1e3:.1f} mm in the image disagrees with the "
@@ -207,33 +233,27 @@ class Measurer:
             )
         if blur > self.max_blur_px:
             raise FrameFailure(f"motion blur: beam edges spread {blur:.1f} px")
-        amax = float(max(la[:, 0].max(), lb[:, 0].max()))
-        centre = _centre_poly(la, lb, self.poly_degree, amax)
-        tip = self._tip(image, clamp, e, n, centre, amax, w_beam)
-        a_tip, b_tip = tip
-        arc = _arc_length(centre, a_tip)
+        if abs(fit.root_slope_rad) > self.max_root_slope_rad:
+            raise FrameFailure(
+                f"the beam leaves the clamp at {math.degrees(fit.root_slope_rad):.2f} deg to "
+                "the hub axis (a clamped beam leaves along it): hub or beam mis-measured"
+            )
+        a_tip, b_tip = self._tip(image, clamp, e, n, centre, amax, w_beam)
+        arc = arc_length(centre, a_tip)
         if abs(arc - length) > 0.02 * length:
             raise FrameFailure(
                 f"beam length {arc * 1e3:.0f} mm along the centre line disagrees with "
                 f"{length * 1e3:.0f} mm (occluded or out of view?)"
             )
-        # Predicted noise of the tip's lateral deflection: hub direction carried to the
-        # tip, and the end value of a degree-d polynomial fit (leverage ~ (d+1)^2 / N).
-        n_pts = len(la) + len(lb)
-        sd_fit = rms * (self.poly_degree + 1) / math.sqrt(n_pts)
-        sd_tip = math.hypot(sd_hub * length, sd_fit)
+        # Predicted noise of the tip's lateral deflection: the hub's direction carried to
+        # the tip, and the fitted centre line's own uncertainty at its end.
+        sd_tip = math.hypot(sd_hub * length, fit.tip_sd)
         if sd_tip > self.max_tip_std_m:
             raise FrameFailure(
                 f"too noisy: tip lateral uncertainty {sd_tip * 1e3:.2f} mm "
                 f"(edge scatter {rms * 1e3:.2f} mm; low contrast?)"
             )
-        root_slope = float(centre.deriv(np.array([0.0]))[0])
-        if abs(root_slope) > self.max_root_slope_rad:
-            raise FrameFailure(
-                f"the beam leaves the clamp at {math.degrees(root_slope):.2f} deg to the hub "
-                "axis (a clamped beam leaves along it): hub or beam mis-measured"
-            )
-        a_st = _stations_to_a(centre, self.stations_m, a_tip)
+        a_st = stations_to_a(centre, self.stations_m, a_tip)
         lat_st = centre(a_st)
         k = 200
         a_line = np.linspace(0.0, a_tip, k)
@@ -268,6 +288,7 @@ class Measurer:
         image: NDArray[np.uint8],
         line_m: NDArray[np.float64],
         half_width_m: float,
+        estimator: str | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         px = self.to_px(line_m)
         # Half width in pixels across the strip, point by point (perspective foreshortens
@@ -276,7 +297,7 @@ class Measurer:
         t /= np.linalg.norm(t, axis=1, keepdims=True)
         nrm = np.column_stack([-t[:, 1], t[:, 0]])
         across = np.linalg.norm(self.to_px(line_m + half_width_m * nrm) - px, axis=1)
-        edges = strip_edges(image, px, across, estimator=self.edge_estimator)
+        edges = strip_edges(image, px, across, estimator=estimator or self.edge_estimator)
         if len(edges.side_a) < 5:
             raise FrameFailure("too few edge points (strip not visible)")
         keep = edges.contrast > 0.35 * np.median(edges.contrast)
@@ -287,21 +308,35 @@ class Measurer:
         )
 
     def _hub_axis(
-        self, image: NDArray[np.uint8], rough: Rough
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float, float, float]:
-        """Hub axis from its two edges fitted as parallel lines in the plane; the last
-        value is the standard uncertainty of its direction (rad)."""
-        d = rough.clamp - rough.hub_back
+        self,
+        image: NDArray[np.uint8],
+        back: NDArray[np.float64],
+        front: NDArray[np.float64],
+        width: float,
+        margin: float,
+        estimator: str | None = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float, float]:
+        """Hub axis from its two long edges between ``back`` and ``front`` (plane, m),
+        ``margin`` clear of both ends, fitted as parallel lines in the plane. Returns the
+        unit direction (back to front) and normal, the axis offset along the normal, the
+        width and the standard uncertainty of the direction (rad)."""
+        d = front - back
         length = float(np.linalg.norm(d))
-        if length < max(20 * self.px_m, 2.0 * rough.hub_width):
+        if length < max(20 * self.px_m, 2.0 * width):
             raise FrameFailure("hub too short in view to fit its axis")
         e = d / length
-        margin = min(0.5 * rough.hub_width, 0.3 * length)
-        t = np.linspace(margin, length - margin, max(8, int(length / self.px_m / 3)))
-        line = rough.hub_back[None, :] + t[:, None] * e[None, :]
-        pa, pb, _ = self._strip_points(image, line, rough.hub_width / 2)
+        # A scan line (a pixel row or column) crosses the two edges up to a hub width
+        # apart along the axis: scan past the ends, then keep the points clear of them.
+        ext = 0.5 * width
+        t = np.linspace(-ext, length + ext, max(8, int((length + 2 * ext) / self.px_m / 3)))
+        line = back[None, :] + t[:, None] * e[None, :]
+        pa, pb, _ = self._strip_points(image, line, width / 2, estimator)
+        ka = ((pa - back) @ e > margin) & ((pa - back) @ e < length - margin)
+        kb = ((pb - back) @ e > margin) & ((pb - back) @ e < length - margin)
+        pa, pb = pa[ka], pb[kb]
+        if len(pa) < 5 or len(pb) < 5:
+            raise FrameFailure("hub edges not visible")
         for _ in range(2):
-            n = np.array([-e[1], e[0]])
             ca, cb = pa.mean(axis=0), pb.mean(axis=0)
             stack = np.vstack([pa - ca, pb - cb])
             _, _, vt = np.linalg.svd(stack, full_matrices=False)
@@ -317,15 +352,28 @@ class Measurer:
             e = e2
         n = np.array([-e[1], e[0]])
         ba, bb = float(pa.mean(axis=0) @ n), float(pb.mean(axis=0) @ n)
-        axis_b = 0.5 * (ba + bb)
-        back_a = float((rough.hub_back - rough.clamp) @ e)
         # Direction uncertainty of the common-direction fit: residual / spread along it.
         ca, cb = pa.mean(axis=0), pb.mean(axis=0)
         res = np.concatenate([(pa - ca) @ n, (pb - cb) @ n])
         spread = float(np.sum(((pa - ca) @ e) ** 2) + np.sum(((pb - cb) @ e) ** 2))
         dof = max(len(res) - 3, 1)
-        sd = math.sqrt(float(np.sum(res**2)) / dof / max(spread, 1e-18))
-        return e, n, back_a, axis_b, abs(ba - bb), sd
+        infl = max(correlation_inflation(_along(pa, e, n)), correlation_inflation(_along(pb, e, n)))
+        sd = math.sqrt(float(np.sum(res**2)) / dof / max(spread, 1e-18) * infl)
+        return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
+
+    def _back_face(
+        self,
+        image: NDArray[np.uint8],
+        clamp: NDArray[np.float64],
+        e: NDArray[np.float64],
+        n: NDArray[np.float64],
+        hub_w: float,
+        guess_a: float,
+    ) -> float:
+        """Axis coordinate (from the clamp, negative) of the hub's back end face."""
+        lat = np.linspace(-0.6, 0.6, 5) * hub_w / 2
+        reach = 0.5 * min(abs(guess_a), 2.0 * hub_w)
+        return -self._along_edge(image, clamp, -e, n, lat, -guess_a, reach)
 
     def _end_face(
         self,
@@ -406,37 +454,13 @@ class Measurer:
         left, right = (hb, ha) if swap else (ha, hb)
         return left, right, float(np.median(spread))
 
-    def _fit_edges(
-        self, left: NDArray[np.float64], right: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
-        """Reject outliers from each edge's polynomial fit; returns the inlier edges, the
-        RMS residual (m) and the median width between the two fits (m)."""
-        amax = float(max(left[:, 0].max(), right[:, 0].max()))
-        out, res, coefs = [], [], []
-        for pts in (left, right):
-            keep = np.ones(len(pts), bool)
-            for _ in range(2):
-                if keep.sum() < 2 * self.poly_degree + 4:
-                    raise FrameFailure("beam edges too ragged")
-                c = _legfit(pts[keep, 0], pts[keep, 1], self.poly_degree, amax)
-                r = pts[:, 1] - legendre.legval(_x(pts[:, 0], amax), c)
-                sig = 1.4826 * np.median(np.abs(r[keep])) + 1e-9
-                keep = np.abs(r) < 5 * sig
-            out.append(pts[keep])
-            res.append(r[keep])
-            coefs.append(c)
-        grid = _x(np.linspace(0.0, amax, 50), amax)
-        width = float(np.median(np.abs(legendre.legval(grid, coefs[0] - coefs[1]))))
-        rms = float(np.sqrt(np.mean(np.concatenate(res) ** 2)))
-        return out[0], out[1], rms, width
-
     def _tip(
         self,
         image: NDArray[np.uint8],
         clamp: NDArray[np.float64],
         e: NDArray[np.float64],
         n: NDArray[np.float64],
-        centre: _Poly,
+        centre: CentreLine,
         amax: float,
         w_beam: float,
     ) -> tuple[float, float]:
@@ -455,53 +479,7 @@ class Measurer:
         return float(a_tip), float(b_tip)
 
 
-class _Poly:
-    """Centre line b(a) as a Legendre series on [0, amax], with linear extension past it."""
-
-    def __init__(self, coef: NDArray[np.float64], amax: float) -> None:
-        self.coef = coef
-        self.amax = amax
-        self.dcoef = legendre.legder(coef) * (2.0 / amax)
-
-    def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
-        a = np.asarray(a, dtype=np.float64)
-        ac = np.clip(a, 0.0, self.amax)
-        return legendre.legval(_x(ac, self.amax), self.coef) + (a - ac) * legendre.legval(
-            _x(ac, self.amax), self.dcoef
-        )
-
-    def deriv(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
-        ac = np.clip(np.asarray(a, dtype=np.float64), 0.0, self.amax)
-        return legendre.legval(_x(ac, self.amax), self.dcoef)
-
-
-def _x(a: NDArray[np.float64], amax: float) -> NDArray[np.float64]:
-    return 2.0 * np.asarray(a) / amax - 1.0
-
-
-def _legfit(a: NDArray[np.float64], b: NDArray[np.float64], deg: int, amax: float) -> NDArray:
-    return legendre.legfit(_x(a, amax), b, deg)
-
-
-def _centre_poly(
-    left: NDArray[np.float64], right: NDArray[np.float64], deg: int, amax: float
-) -> _Poly:
-    """Mean of the two edge fits, as one series."""
-    cl = _legfit(left[:, 0], left[:, 1], deg, amax)
-    cr = _legfit(right[:, 0], right[:, 1], deg, amax)
-    return _Poly(0.5 * (cl + cr), amax)
-
-
-def _arc_length(centre: _Poly, a_end: float) -> float:
-    a = np.linspace(0.0, a_end, 2001)
-    return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
-
-
-def _stations_to_a(
-    centre: _Poly, stations: NDArray[np.float64], a_end: float
-) -> NDArray[np.float64]:
-    """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
-    a = np.linspace(0.0, max(a_end, float(stations.max()) + 0.01), 4001)
-    ds = np.sqrt(1.0 + centre.deriv(a) ** 2)
-    s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
-    return np.interp(stations, s, a)
+def _along(p: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64]) -> NDArray:
+    """Residuals across a straight edge (N, 2) about its mean, ordered along it."""
+    c = p - p.mean(axis=0)
+    return (c @ n)[np.argsort(c @ e)]
