@@ -10,6 +10,7 @@ Both return a 3x3 matrix ``H`` acting on ``(x, y, 1)`` column vectors:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from itertools import combinations
 
@@ -179,3 +180,80 @@ def apply_homography(matrix: ArrayLike, points: ArrayLike) -> NDArray[np.float64
 def _rms(h: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64]) -> float:
     r = apply_homography(h, s) - d
     return float(np.sqrt(np.mean(np.sum(r * r, axis=1))))
+
+
+@dataclass(frozen=True)
+class LineHomographyFit:
+    """A homography fitted to points on the images of known plane lines.
+
+    ``matrix``: (3, 3) plane-from-image ``H`` (``X ~ H (x, y, 1)``); ``residuals_px``:
+    per line, the signed image distance (px) of each point from the fitted line's image;
+    ``inliers``: per line, the points kept; ``rms_px``: RMS distance of the inliers.
+    """
+
+    matrix: NDArray[np.float64]
+    residuals_px: list[NDArray[np.float64]]
+    inliers: list[NDArray[np.bool_]]
+    rms_px: float
+
+
+def homography_from_lines(
+    points_px: list[NDArray[np.float64]],
+    plane_lines: NDArray[np.float64],
+    initial: NDArray[np.float64],
+    reject: float = 4.0,
+    min_sigma_px: float = 0.05,
+) -> LineHomographyFit:
+    """Maximum-likelihood homography from image points known to lie on plane lines.
+
+    Each plane line ``l = (a, b, c)`` (``a X + b Y + c = 0``, plane units) appears in the
+    image as the line ``H^T l``; the fit minimises the squared image distances of the
+    points ``points_px[j]`` ((N_j, 2), px) from the image of line ``j`` over the eight
+    degrees of freedom of ``H``, starting from ``initial`` (plane from image). Using every
+    edge point, not the few corners the lines cross at, is what pins the perspective
+    terms that decide the plane's scale and rotation far from the object. Points farther
+    than ``reject`` robust sigmas (at least ``min_sigma_px``: a noise-free image's
+    aliasing is not an outlier) from their line are dropped and the fit repeated.
+    """
+    from scipy.optimize import least_squares
+
+    if len(points_px) != len(plane_lines):
+        raise ValueError("points_px and plane_lines must have one entry per line")
+    allp = np.vstack(points_px)
+    tn = _normalizer(allp)
+    lines = np.asarray(plane_lines, dtype=np.float64)
+    # Work with normalized image coordinates: H_n = H T^-1.
+    tn_inv = np.linalg.inv(tn)
+    h_n = np.asarray(initial, dtype=np.float64) @ tn_inv
+    h_n = h_n / np.linalg.norm(h_n)
+    idx = np.concatenate([np.full(len(p), j) for j, p in enumerate(points_px)])
+    pn = np.column_stack([apply_homography(tn, allp), np.ones(len(allp))])
+    scale = 1.0 / tn[0, 0]  # normalized units -> px
+    keep = np.ones(len(allp), dtype=bool)
+
+    def distances(h: NDArray[np.float64], sel: NDArray[np.bool_]) -> NDArray[np.float64]:
+        hm = h.reshape(3, 3)
+        li = lines @ hm  # (J, 3) image lines, normalized coordinates
+        li = li / np.linalg.norm(li[:, :2], axis=1, keepdims=True)
+        return np.asarray(np.sum(li[idx[sel]] * pn[sel], axis=1) * scale)
+
+    x = h_n.ravel()
+    # Gross outliers (clutter over an edge) go before the first fit: the initial
+    # homography is good to a fraction of a pixel.
+    r = distances(x, keep)
+    sig = max(1.4826 * float(np.median(np.abs(r))), min_sigma_px)
+    keep = np.abs(r) < reject * sig
+    for _ in range(2):
+        sel = keep.copy()
+        sol = least_squares(
+            lambda v, s=sel: np.append(distances(v, s), 1e3 * (v @ v - 1.0)), x, method="lm"
+        )
+        x = sol.x / np.linalg.norm(sol.x)
+        r = distances(x, np.ones(len(allp), dtype=bool))
+        sig = max(1.4826 * float(np.median(np.abs(r[keep]))), min_sigma_px)
+        keep = np.abs(r) < reject * sig
+    h = x.reshape(3, 3) @ tn
+    h = h / h[2, 2] if abs(h[2, 2]) > 1e-300 else h
+    splits = np.cumsum([len(p) for p in points_px])[:-1]
+    rms = float(np.sqrt(np.mean(r[keep] ** 2))) if keep.any() else math.inf
+    return LineHomographyFit(h, np.split(r, splits), np.split(keep, splits), rms)

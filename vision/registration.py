@@ -25,7 +25,13 @@ from numpy.typing import NDArray
 from vision.calibration import Calibration
 from vision.camera import check_intrinsics, distort_points_px, undistort_points_px
 from vision.config import RegistrationConfig
-from vision.homography import apply_homography, collineation_4pt
+from vision.edges import erf_edge
+from vision.homography import (
+    LineHomographyFit,
+    apply_homography,
+    collineation_4pt,
+    homography_from_lines,
+)
 from vision.sampling import bilinear, edge_moment
 
 
@@ -252,12 +258,15 @@ def detect_registration_points(
     levels = (-hp, -hs, hs, hp)
     light_dir = (1.0, -1.0, 1.0, -1.0)  # light side of each level (toward the quadrants)
     segments = ((-hp, -hs), (hs, hp))
-    lines: list[list[tuple[NDArray[np.float64], NDArray[np.float64]]]] = [[], []]
+    # Dense edge points (about one per pixel) along each of the eight straight edges.
+    px_per_m = float(np.linalg.norm(ideal_inner[1] - ideal_inner[0])) / (2 * hs)
+    lines_px, plane_lines = [], []
     for axis in (0, 1):
         for level, sign in zip(levels, light_dir, strict=True):
             pts = []
             for lo, hi in segments:
-                t = np.linspace(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), 40)
+                n_pts = int(np.clip(0.8 * (hi - lo) * px_per_m, 20, 600))
+                t = np.linspace(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo), n_pts)
                 local = np.zeros((len(t), 2))
                 local[:, axis] = level
                 local[:, 1 - axis] = t
@@ -267,17 +276,67 @@ def detect_registration_points(
             ideal = undistort_points_px(np.vstack(pts), k, d)
             if len(ideal) < 20:
                 raise ValueError("registration object: plate edges not visible")
-            lines[axis].append(_fit_line(ideal))
-    ideal16, local16 = [], []
-    for i, lu in enumerate(lines[0]):
-        for j, lv in enumerate(lines[1]):
-            ideal16.append(_intersect(lu, lv))
-            local16.append((levels[i], levels[j]))
-    raw = distort_points_px(np.array(ideal16), k, d)
+            lines_px.append(ideal)
+            line = np.zeros(3)
+            line[axis], line[2] = 1.0, -level
+            plane_lines.append(line)
+    h0_inv = np.asarray(np.linalg.inv(h0), dtype=np.float64)
+    fit = homography_from_lines(lines_px, np.array(plane_lines), h0_inv)
+    _check_fit(fit, k)
+    local16 = np.array([(u, v) for u in levels for v in levels])
+    ideal16 = apply_homography(np.linalg.inv(fit.matrix), local16)
+    raw = distort_points_px(ideal16, k, d)
+    # The refined inner corners must agree with the quadrants' own corners.
+    moved = float(np.max(np.linalg.norm(raw[[5, 9, 10, 6]] - inner, axis=1)))
+    if moved > MAX_CORNER_SHIFT_PX:
+        raise ValueError(
+            f"registration object: the fitted plate disagrees with its crossing square by "
+            f"{moved:.2f} px (not the registration object, or partly hidden)"
+        )
     h, w = image_gray.shape
     if np.any(raw < 0) or np.any(raw[:, 0] > w - 1) or np.any(raw[:, 1] > h - 1):
         raise ValueError("registration object: a plate corner lies off the image")
     return raw, _local_to_plane(registration, np.array(local16))
+
+
+#: Refuse the registration when a straight edge keeps less than this share of its points.
+MIN_INLIER_SHARE = 0.6
+#: ... or its points scatter more than this (px RMS) about the fitted object.
+MAX_EDGE_RMS_PX = 0.5
+#: ... or the fitted inner corners move this far from the first detection (px).
+MAX_CORNER_SHIFT_PX = 1.0
+#: ... or, with known intrinsics, the plane's axes seen through the camera matrix are
+#: unequal or non-orthogonal by more than this (a square imaged by a pinhole camera).
+MAX_SHAPE_ERROR = 0.05
+
+
+def _check_fit(fit: LineHomographyFit, k: NDArray[np.float64] | None) -> None:
+    """Refuse (``ValueError`` with the reason) a registration the edges do not support."""
+    for j, keep in enumerate(fit.inliers):
+        share = float(np.mean(keep))
+        if share < MIN_INLIER_SHARE:
+            raise ValueError(
+                f"registration object: edge {j} is not straight (only {100 * share:.0f} % of "
+                "its points on a line: hidden by something, or not the registration object)"
+            )
+    if not fit.rms_px <= MAX_EDGE_RMS_PX:
+        raise ValueError(
+            f"registration object: its edges scatter {fit.rms_px:.2f} px about the fitted "
+            f"object (more than {MAX_EDGE_RMS_PX} px: too noisy or not the object)"
+        )
+    if k is None:
+        return
+    # Plane (object) axes through the camera: columns of K^-1 G are r1 s, r2 s, t s.
+    m = np.linalg.inv(k) @ np.linalg.inv(fit.matrix)
+    r1, r2 = m[:, 0], m[:, 1]
+    n1, n2 = float(np.linalg.norm(r1)), float(np.linalg.norm(r2))
+    skew = abs(float(r1 @ r2)) / (n1 * n2)
+    if abs(n1 / n2 - 1.0) > MAX_SHAPE_ERROR or skew > MAX_SHAPE_ERROR:
+        raise ValueError(
+            "registration object: the fitted plate is not a square seen through the camera "
+            f"matrix (axis ratio {n1 / n2:.3f}, skew {skew:.3f}): wrong intrinsics or a "
+            "misdetected object"
+        )
 
 
 def _refine_line(
@@ -288,24 +347,49 @@ def _refine_line(
     local: NDArray[np.float64],
     toward_light: NDArray[np.float64],
 ) -> NDArray[np.float64]:
-    """Sub-pixel dark-to-light edge points (raw px) near predicted local edge points."""
+    """Sub-pixel dark-to-light edge points (raw px) near predicted local edge points.
+
+    The edge is scanned along raw pixel rows or columns (whichever crosses it more
+    squarely), one scan line per pixel, and located by the least-squares blurred-step fit
+    of :func:`vision.edges.erf_edge`: no interpolation, whose bias follows the edge's
+    phase on the pixel grid and does not average out along an edge that is nearly
+    parallel to the grid."""
     a = distort_points_px(apply_homography(h0, local), k, d)
     b = distort_points_px(apply_homography(h0, local + toward_light), k, d)
     nrm = b - a
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    step = 0.25
-    offs = np.arange(-8.0, 8.0 + step / 2, step)
-    pts = a[:, None, :] + offs[None, :, None] * nrm[:, None, :]
-    v = bilinear(image, pts.reshape(-1, 2)).reshape(len(a), len(offs))
-    ok = np.all(np.isfinite(v), axis=1)
+    axis = 1 if np.median(np.abs(nrm[:, 1])) >= np.median(np.abs(nrm[:, 0])) else 0
+    sign = 1.0 if np.median(nrm[:, axis]) > 0 else -1.0
+    # One scan line per integer coordinate across the scan direction.
+    across = a[:, 1 - axis]
+    order = np.argsort(across)
+    lines = np.arange(math.ceil(across[order][0]), math.floor(across[order][-1]) + 1)
+    if lines.size < 2:
+        return np.zeros((0, 2))
+    pos = np.interp(lines, across[order], a[order, axis])
+    reach = 7
+    offs = np.arange(-reach, reach + 1) * int(sign)
+    idx = np.round(pos).astype(np.intp)[:, None] + offs[None, :]
+    h, w = image.shape
+    size_along, size_across = (h, w) if axis == 1 else (w, h)
+    ok = (idx.min(axis=1) >= 0) & (idx.max(axis=1) < size_along)
+    ok &= (lines >= 0) & (lines < size_across)
     if not ok.any():
         return np.zeros((0, 2))
-    diff = np.diff(v[ok], axis=1)
-    peak = np.argmax(diff, axis=1)
-    c, kk, _ = edge_moment(diff, peak, round(4.0 / step))
-    off = offs[0] + c * step
-    good = np.isfinite(off) & (kk > 15) & (np.abs(off) < 6.0)
-    return a[ok][good] + off[good, None] * nrm[ok][good]
+    idx, lines = idx[ok], lines[ok]
+    cols = np.broadcast_to(lines[:, None], idx.shape)
+    prof = (image[idx, cols] if axis == 1 else image[cols, idx]).astype(np.float64)
+    lo = prof[:, :2].mean(axis=1)
+    hi = prof[:, -2:].mean(axis=1)
+    frac = (prof - lo[:, None]) / np.maximum(hi - lo, 1e-6)[:, None]
+    start = len(offs) - 0.5 - frac.sum(axis=1)  # equal-area step (sample units)
+    c = erf_edge(prof, start, lo, hi, np.full(len(lo), 0.8), rising=True)
+    good = np.isfinite(c) & (hi - lo > 15.0) & (c > 2.0) & (c < len(offs) - 3.0)
+    along = idx[:, 0] + sign * c
+    out = np.zeros((int(good.sum()), 2))
+    out[:, axis] = along[good]
+    out[:, 1 - axis] = lines[good]
+    return out
 
 
 def detect_registration_corners(
