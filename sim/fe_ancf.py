@@ -116,40 +116,12 @@ def _bincount(idx: NDArray[np.intp], weights: FloatArray, minlength: int) -> Flo
     return np.asarray(np.bincount(idx, weights=weights, minlength=minlength), dtype=float)
 
 
-def _hvp_fast(gh: FloatArray, dgh: FloatArray, ea: FloatArray, ei: FloatArray) -> FloatArray:
-    """Hessian of the energy density times directions: gh (4, P), dgh (4, P, K) -> (4, P, K)."""
-    g1, g2, h1, h2 = (x[:, None] for x in gh)
-    ea = ea[:, None]
-    ei = ei[:, None]
-    d1, d2, e1, e2 = dgh
-    n = g1 * g1 + g2 * g2
-    sq = np.sqrt(n)
-    c = g1 * h2 - g2 * h1
-    n3 = 1.0 / (n * n * n)
-    dn = 2.0 * (g1 * d1 + g2 * d2)
-    dc = d1 * h2 + g1 * e2 - d2 * h1 - g2 * e1
-    fa = ea * (1.0 - 1.0 / sq)
-    dfa = 0.5 * ea / (n * sq) * dn
-    b1 = ei * c * n3
-    db1 = ei * n3 * (dc - 3.0 * c * dn / n)
-    b2 = b1 * c / n
-    db2 = ei * n3 / n * (2.0 * c * dc - 4.0 * c * c * dn / n)
-    k = fa - 3.0 * b2
-    dk = dfa - 3.0 * db2
-    return np.stack(
-        [
-            dk * g1 + k * d1 + db1 * h2 + b1 * e2,
-            dk * g2 + k * d2 - db1 * h1 - b1 * e1,
-            -db1 * g2 - b1 * d2,
-            db1 * g1 + b1 * d1,
-        ]
-    )
-
-
 def _damped_force_fast(
     gh: FloatArray, dgh: FloatArray, ea: FloatArray, ei: FloatArray, a1: float
 ) -> FloatArray:
-    """Energy gradient plus ``a1`` times its rate along ``dgh``: (4, P) each -> (4 P,)."""
+    """Energy gradient plus ``a1`` times its rate along ``dgh``: (4, P, ...) each ->
+    (4 P, ...). Pointwise and analytic, so it also takes complex arguments (complex-step
+    derivatives)."""
     g1, g2, h1, h2 = gh
     d1, d2, e1, e2 = dgh
     n = g1 * g1 + g2 * g2
@@ -159,13 +131,14 @@ def _damped_force_fast(
     b1 = ei * c * inv_n * inv_n * inv_n
     b2 = b1 * c * inv_n
     k = ea * (1.0 - isq) - 3.0 * b2
-    out = np.empty((4, n.size))
+    out = np.empty((4, *n.shape), dtype=np.result_type(gh, dgh))
+    shape = (4 * n.shape[0], *n.shape[1:])
     if a1 == 0.0:
         out[0] = k * g1 + b1 * h2
         out[1] = k * g2 - b1 * h1
         out[2] = -b1 * g2
         out[3] = b1 * g1
-        return out.ravel()
+        return out.reshape(shape)
     dn = 2.0 * (g1 * d1 + g2 * d2)
     dc = d1 * h2 + g1 * e2 - d2 * h1 - g2 * e1
     db1 = ei * inv_n * inv_n * inv_n * (dc - 3.0 * c * dn * inv_n)
@@ -179,7 +152,7 @@ def _damped_force_fast(
     out[1] = ka * g2 + kb * d2 - b1a * h1 - b1b * e1
     out[2] = -b1a * g2 - b1b * d2
     out[3] = b1a * g1 + b1b * d1
-    return out.ravel()
+    return out.reshape(shape)
 
 
 @dataclass
@@ -379,6 +352,11 @@ class AncfSystem:
         self.m_e0 = self.minv_m @ fe.e_ref
         self.mj_e0 = self.minv_mj @ fe.e_ref
         self.m_ff = self.minv_m[:, fr]
+        # the same maps ordered point by point: B per point (P, 4, nf), M^-1 B^T (nf, P 4)
+        self.b_pts = np.ascontiguousarray(self.bf.transpose(1, 0, 2))
+        self.minv_bt_pts = np.ascontiguousarray(
+            self.minv_bt.reshape(self.nf, 4, npt).transpose(0, 2, 1).reshape(self.nf, -1)
+        )
         self.eye = np.eye(self.nf)
 
     def full(self, d: FloatArray) -> FloatArray:
@@ -416,34 +394,74 @@ class AncfSystem:
         )
         return np.concatenate([v, acc])
 
-    def _stiffness(self, gh: FloatArray) -> FloatArray:
-        """``M^-1 K_T`` on the free coordinates (nf, nf)."""
+    def rhs_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
+        """The right-hand side at several points at once: (k,), (k, n_state) -> (k, n_state)."""
+        nf = self.nf
+        d, v = ys[:, :nf].T, ys[:, nf:].T  # (nf, k)
+        om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
+        al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
         fe = self.fe
-        dg = _hvp_fast(gh, self.bf, fe.ea_p, fe.ei_p)
-        return self.minv_bt @ dg.reshape(-1, self.nf)
+        gh = self.gh0[..., None] + self.bf @ d  # (4, P, k)
+        dgh = self.bf @ v if self.a1 != 0.0 else gh
+        gen = _damped_force_fast(gh, dgh, fe.ea_p[:, None], fe.ei_p[:, None], self.a1)
+        acc = (
+            -self.minv_bt @ gen
+            - (2.0 * om) * (self.minv_mj_ff @ v)
+            - al * (self.mj_e0[:, None] + self.minv_mj_ff @ d)
+            + (om * om) * (self.m_e0[:, None] + self.m_ff @ d)
+            - self.a0 * v
+        )
+        return np.concatenate([v, acc]).T
+
+    def _force_derivatives(self, gh: FloatArray, dgh: FloatArray) -> FloatArray:
+        """Pointwise derivatives of the damped force (gradient + a1 K_T rate) by complex
+        step: ``gh``, ``dgh`` (4, P, k) -> (4, P, k, 4) w.r.t. ``gh``, then (with damping)
+        (4, P, k, 4) w.r.t. ``dgh``, stacked on the last axis.
+
+        The force at a Gauss point depends only on ``gh`` and ``dgh`` there, so eight
+        (four without damping) complex evaluations give the exact tangent, third derivatives
+        of the energy (the Kelvin-Voigt term's dependence on the state) included."""
+        fe = self.fe
+        npert = 8 if self.a1 != 0.0 else 4
+        step = 1e-30
+        ghc = np.repeat(gh[..., None], npert, axis=-1).astype(complex)
+        dghc = np.repeat(dgh[..., None], npert, axis=-1).astype(complex)
+        for k in range(4):
+            ghc[k, ..., k] += 1j * step
+            if npert == 8:
+                dghc[k, ..., 4 + k] += 1j * step
+        f = _damped_force_fast(ghc, dghc, fe.ea_p[:, None, None], fe.ei_p[:, None, None], self.a1)
+        return f.imag.reshape(4, *gh.shape[1:], npert) / step
+
+    def jac_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
+        """Exact Jacobians of :meth:`rhs` at several points: (k,), (k, n) -> (k, n, n)."""
+        nf = self.nf
+        npts = ts.size
+        d, v = ys[:, :nf].T, ys[:, nf:].T
+        om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
+        al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
+        gh = self.gh0[..., None] + self.bf @ d  # (4, P, k)
+        dgh = self.bf @ v if self.a1 != 0.0 else gh
+        local = self._force_derivatives(gh, dgh)  # (4 out, P, k, npert)
+        npert = local.shape[-1]
+        # per point: (out, in) blocks times that point's B (4, nf), then B^T M^-1 over points
+        lt = local.reshape(4, *local.shape[1:3], npert // 4, 4).transpose(1, 2, 3, 0, 4)
+        y_pts = lt @ self.b_pts[:, None, None]  # (P, k, npert/4, 4, nf)
+        y_pts = y_pts.transpose(1, 2, 0, 3, 4).reshape(npts, npert // 4, -1, nf)
+        kk = self.minv_bt_pts @ y_pts  # (k, npert/4, nf, nf): M^-1 dF/d(d), M^-1 dF/d(v)
+        jac = np.zeros((npts, 2 * nf, 2 * nf))
+        jac[:, :nf, nf:] = self.eye
+        jac[:, nf:, :nf] = (
+            -kk[:, 0] - al[:, None, None] * self.minv_mj_ff + (om * om)[:, None, None] * self.m_ff
+        )
+        jac[:, nf:, nf:] = -2.0 * om[:, None, None] * self.minv_mj_ff - self.a0 * self.eye
+        if npert == 8:
+            jac[:, nf:, nf:] -= kk[:, 1]
+        return jac
 
     def jac(self, t: float, y: FloatArray) -> FloatArray:
-        nf = self.nf
-        d, v = y[:nf], y[nf:]
-        om, al = self._hub(t)
-        gh = self._gh(d)
-        mk = self._stiffness(gh)
-        mk_e = mk
-        vn = float(np.max(np.abs(v)))
-        if self.a1 != 0.0 and vn > 0.0:
-            # d(K_T(e) v)/de is the derivative of K_T along v (third derivatives of the
-            # energy are symmetric): a central difference of two tangents. With the huge
-            # axial stiffness this term dominates the Jacobian once the beam moves.
-            step = 1e-6 / vn
-            dgh = self.bf @ v
-            mk_e = mk + self.a1 * (
-                self._stiffness(gh + step * dgh) - self._stiffness(gh - step * dgh)
-            ) / (2.0 * step)
-        jac = np.zeros((2 * nf, 2 * nf))
-        jac[:nf, nf:] = self.eye
-        jac[nf:, :nf] = -mk_e - al * self.minv_mj_ff + om * om * self.m_ff
-        jac[nf:, nf:] = -2.0 * om * self.minv_mj_ff - self.a0 * self.eye - self.a1 * mk
-        return jac
+        """Exact Jacobian of :meth:`rhs` (n_state, n_state)."""
+        return self.jac_stages(np.array([t]), y[None, :])[0]
 
     def initial_state(self) -> FloatArray:
         return np.zeros(self.n_state)
