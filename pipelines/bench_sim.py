@@ -84,15 +84,34 @@ def _candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult
             rtol=rtol, atol=rtol * 1e-3,
         )  # fmt: skip
 
-    def fe(form: str, n: int, rtol: float) -> Callable[[Scene], SimResult]:
+    def fe(form: str, n: int, rtol: float, method: str = "auto") -> Callable[[Scene], SimResult]:
+        atol = rtol if method == "radau5" else rtol * 1e-3
         return lambda s: simulate_fe(
             s.beam, s.drive, s.t_s, n_elements=n, formulation=form, a0_per_s=s.damping[0],
-            a1_s=s.damping[1], rtol=rtol, atol=rtol * 1e-3,
+            a1_s=s.damping[1], rtol=rtol, atol=atol, method=method,
         )  # fmt: skip
+
+    def modal_nl(n: int, rtol: float) -> Callable[[Scene], SimResult]:
+        from sim.modal_nonlinear import simulate_modal_nonlinear
+
+        return lambda s: simulate_modal_nonlinear(
+            s.beam, s.drive, s.t_s, n_modes=n, a0_per_s=s.damping[0], a1_s=s.damping[1],
+            rtol=rtol, atol=rtol * 1e-3,
+        )  # fmt: skip
+
+    def auto(tol: float) -> Callable[[Scene], SimResult]:
+        from sim.auto import simulate_auto
+
+        return lambda s: simulate_auto(
+            s.beam, s.drive, s.t_s, tol=tol, a0_per_s=s.damping[0], a1_s=s.damping[1]
+        )
 
     out = [
         ("modal", "4 modes, rtol 1e-6", modal(4, 1e-6)),
+        ("modal-nonlinear", "4 modes, rtol 1e-6", modal_nl(4, 1e-6)),
         ("fe-corot", "2 elements, rtol 1e-6", fe("corot", 2, 1e-6)),
+        ("fe-corot radau5", "3 elements, rtol 1e-4", fe("corot", 3, 1e-4, "radau5")),
+        ("auto", "tol 1e-3", auto(1e-3)),
     ]
     if not quick:
         out += [
@@ -100,6 +119,9 @@ def _candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult
             ("fe-corot", "2 elements, rtol 1e-8", fe("corot", 2, 1e-8)),
             ("fe-corot", "4 elements, rtol 1e-8", fe("corot", 4, 1e-8)),
             ("fe-flxdyn", "2 elements, rtol 1e-6", fe("flxdyn", 2, 1e-6)),
+            ("fe-corot radau5", "5 elements, rtol 1e-4", fe("corot", 5, 1e-4, "radau5")),
+            ("auto", "tol 1e-2", auto(1e-2)),
+            ("auto", "tol 1e-4", auto(1e-4)),
         ]
     return out
 
