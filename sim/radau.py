@@ -5,11 +5,15 @@ transformed collocation system, the embedded error estimate filtered through the
 factor, Gustafsson's step control, the collocation polynomial as dense output), with two
 changes that matter for the stiff, *nonlinear* beams with Kelvin-Voigt damping:
 
-- the Jacobian is evaluated at the start of **every** step. The axial stiffness EA (times
+- the Jacobian is evaluated at the start of **every** step (and, with ``jac_stages``, at
+  every Newton iterate of every stage). The axial stiffness EA (times
   a1) acts along the rotating centre line, so a Jacobian a few steps old is wrong by
-  ``a1 EA`` times the change of slope, and scipy's policy (keep it until Newton fails)
-  spends most of its steps failing, halving and recomputing: measured on the paper's
-  scene, 1.5 Jacobians and 18 right-hand sides per accepted step with 5x smaller steps;
+  ``a1 EA`` times the change of slope. scipy's policy (keep it until Newton fails) took
+  260 BDF steps per simulated second with a Jacobian every 1.5 steps on the paper's scene;
+  even a Jacobian fresh at every step start failed 62 % of the Newton attempts there
+  (contraction 0.8). So with ``jac_stages`` the collocation system is solved by full
+  Newton, each stage with its own Jacobian at the current iterate: 2.3 iterations per step
+  and steps set by accuracy alone (42 per simulated second at rtol = atol = 1e-4);
 - the three stages are evaluated in one call, ``rhs_stages(ts, ys)``, so a Newton
   iteration is one vectorised evaluation instead of three Python calls.
 
