@@ -47,7 +47,7 @@ def _decode_share(log_path: Path, calibration: object, stations: tuple[float, ..
 
 def run(quick: bool) -> int:
     from pipelines.demo import capture_synthetic, truth_notes
-    from pipelines.process import load_log, process_run, write_processed
+    from pipelines.process import process_run, write_processed
     from pipelines.review import stream_processed
     from pipelines.rig import load_rig
     from pipelines.viewer import open_viewer
@@ -67,7 +67,7 @@ def run(quick: bool) -> int:
         t = processed.timings
         t1 = time.perf_counter()
         viewer = open_viewer("beambench-bench", rrd_path=Path(tmp) / "run.rrd")
-        stream_processed(processed, log_path, viewer, load_log(log_path))
+        stream_processed(processed, log_path, viewer)
         viewer.close()
         t.viewer_s = time.perf_counter() - t1
         total_s = time.perf_counter() - t0

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pipelines.capture import capture_run
-from pipelines.process import Processed, load_log, process_run, write_processed
+from pipelines.process import Processed, process_run, write_processed
 from pipelines.report import write_report
 from pipelines.review import stream_processed
 from pipelines.rig import Rig
@@ -116,7 +116,7 @@ def run_demo(rig: Rig, out: Path, *, duration_s: float = 20.0) -> dict[str, Path
     rrd_path = out / "run.rrd"
     viewer = open_viewer("beambench-demo", rrd_path=rrd_path)
     try:
-        stream_processed(processed, log_path, viewer, load_log(log_path))
+        stream_processed(processed, log_path, viewer)
     except BaseException:
         viewer.abort()
         raise

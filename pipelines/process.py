@@ -78,6 +78,8 @@ class Processed:
     sim: SimResult
     strain_shape: StrainShape
     timings: Timings = field(default_factory=Timings)
+    # the log's event records, so the viewer need not read the log a second time
+    events: list[Any] = field(default_factory=list)
 
 
 def load_log(path: Path) -> Any:
@@ -287,7 +289,7 @@ def process_run(
         station_m=np.asarray(stations, float),
         lateral_at_stations_image_m=cols["lateral_at_stations_m"],
     )
-    return Processed(results, frames, calibration, alignment, sim, shape, timings)
+    return Processed(results, frames, calibration, alignment, sim, shape, timings, list(run.events))
 
 
 def write_processed(processed: Processed, out_path: Path) -> None:

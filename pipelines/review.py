@@ -63,7 +63,7 @@ def frame_overlay(
     )
 
 
-def stream_processed(processed: Processed, log_path: Path, viewer: RunViewer, run: object) -> None:
+def stream_processed(processed: Processed, log_path: Path, viewer: RunViewer) -> None:
     """Log a processed run: results series, every frame with its overlays, events."""
     from vision import Measurer
 
@@ -88,5 +88,4 @@ def stream_processed(processed: Processed, log_path: Path, viewer: RunViewer, ru
             shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
         overlay = frame_overlay(measured.measurement, measurer.to_px, shape, length)
         viewer.log_frame(t, frame.data, frame.encoding, overlay)
-    events = getattr(run, "events", [])
-    viewer.log_events(events, t0_ns=t0_ns)
+    viewer.log_events(processed.events, t0_ns=t0_ns)

@@ -67,6 +67,7 @@ FE_RTOL_MAX = 1e-4  # looser, Newton's tolerance (sqrt rtol) costs rejected step
 FE_SHARE = 0.7  # of tol, for the discretisation
 BETA_2 = 4.694091132974175  # second clamped-free root: w_2 = BETA_2^2 sqrt(EI / rhoA) / L^2
 MAX_MODES = 10
+PROBE_RTOL = 1e-3
 
 
 def _rel_change(a: SimResult, b: SimResult) -> float:
@@ -145,8 +146,10 @@ def simulate_auto(
     rtol_modal = max(t_tol / 20.0, 1e-12)
     a0, a1 = float(a0_per_s), float(a1_s)
     t0 = time.perf_counter()
-    # the deflection only needs a few per cent: one loose 3-mode run
-    probe = simulate_modal(beam, drive, t_eval_s, n_modes=3, rtol=1e-3, **common)
+    # the deflection only needs a few per cent: one loose 3-mode run (it is the first
+    # step of the truncation check too when that runs no tighter)
+    rtol_probe = max(PROBE_RTOL, rtol_modal)
+    probe = simulate_modal(beam, drive, t_eval_s, n_modes=3, rtol=rtol_probe, **common)
     delta = float(np.max(np.abs(probe.tip_lateral_m)))
     e_nl = C_NONLINEAR * (delta / beam.length_m) ** 2
     e_time = rtol_modal
@@ -154,7 +157,10 @@ def simulate_auto(
     n = 3
     modal: SimResult | None = None
     if e_nl + e_time < t_tol:
-        prev = simulate_modal(beam, drive, t_eval_s, n_modes=n, rtol=rtol_modal, **common)
+        if rtol_probe == rtol_modal:
+            prev = probe
+        else:
+            prev = simulate_modal(beam, drive, t_eval_s, n_modes=n, rtol=rtol_modal, **common)
         while True:
             modal = simulate_modal(beam, drive, t_eval_s, n_modes=n + 1, rtol=rtol_modal, **common)
             e_trunc = _rel_change(prev, modal)

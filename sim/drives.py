@@ -139,7 +139,7 @@ def _pad_ends(t: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
     )
 
 
-GCV_WINDOW = 1000  # samples: 2.5 s at 400 Hz, more than two rocker cycles
+GCV_WINDOW = 600  # samples: 1.5 s at 400 Hz, more than one rocker cycle (1.09 s)
 
 
 def _gcv_smoothing(t: FloatArray, y: FloatArray) -> float:

@@ -86,13 +86,12 @@ def run(args: argparse.Namespace) -> int:
 def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace) -> None:
     import time
 
-    from pipelines.process import Processed, load_log
+    from pipelines.process import Processed
     from pipelines.review import stream_processed
     from pipelines.viewer import open_viewer
 
     assert isinstance(processed, Processed)
     t0 = time.perf_counter()
-    run = load_log(log_path)
     try:
         viewer = open_viewer(
             "beambench", rrd_path=args.rrd, spawn=args.spawn, connect_url=args.connect
@@ -100,7 +99,7 @@ def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace
     except ValueError as exc:
         raise BeambenchError(str(exc)) from None
     try:
-        stream_processed(processed, log_path, viewer, run)
+        stream_processed(processed, log_path, viewer)
     except BaseException:
         viewer.abort()
         raise
