@@ -5,6 +5,7 @@ Skipped without the optional ``peers`` extra (CI installs only ``.[dev]``).
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -12,16 +13,16 @@ import pytest
 
 pytest.importorskip("exudyn")
 
-from pipelines.peers_exudyn import (  # noqa: E402
+from pipelines.peers_exudyn import (
     first_frequency_hz,
     simulate_exudyn,
     simulate_fe_kelvin_voigt,
     static_tip_deflection_m,
 )
-from sim.beam import BeamProperties, spin_up_beam  # noqa: E402
-from sim.config import BeamConfig  # noqa: E402
-from sim.drives import SinusoidDrive, SpinUpDrive  # noqa: E402
-from sim.fe import simulate_fe  # noqa: E402
+from sim.beam import BeamProperties, spin_up_beam
+from sim.config import BeamConfig
+from sim.drives import SinusoidDrive, SpinUpDrive
+from sim.fe import simulate_fe
 
 RIG = BeamProperties.from_config(BeamConfig())
 
@@ -45,7 +46,7 @@ def test_first_frequency_converges_to_the_closed_form_at_fourth_order() -> None:
     # cubic Hermite elements: eigenvalue error ~ h^4 (measured 4.8e-4, 3.3e-5, 2.1e-6)
     assert errs[-1] == pytest.approx(0.0, abs=3e-6)
     assert all(e > 0.0 for e in errs)  # consistent mass, conforming: from above
-    rates = [math.log2(a / b) for a, b in zip(errs, errs[1:], strict=False)]
+    rates = [math.log2(a / b) for a, b in itertools.pairwise(errs)]
     assert all(3.6 < r < 4.4 for r in rates), rates
 
 
