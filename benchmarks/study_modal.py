@@ -1,6 +1,6 @@
-"""Speed against error of the modal model (a script, not a test: pytest does not collect it).
+"""Speed against error of the modal model (a study script, not part of `beambench bench`).
 
-    .venv/bin/python tests/sim/bench_modal.py [--quick]
+    .venv/bin/python benchmarks/study_modal.py [--quick]
 
 Reciprocating scene (rig beam, paper drive Eq. 53, a0 = a1 = 0.1, 10 s from rest, 400 Hz
 output): error = max |tip - reference| over the last three cycles / max |reference| there.

@@ -1,6 +1,6 @@
-"""Modal against finite elements on the reciprocating scene (a script, not a test).
+"""Modal against finite elements on the reciprocating scene (a study script).
 
-    .venv/bin/python tests/sim/compare_modal_fe.py
+    .venv/bin/python benchmarks/study_modal_vs_fe.py
 
 Rig beam, paper drive (Eq. 53) at full, half and quarter stroke, a0 = a1 = 0.1, 4 s from
 rest at 400 Hz; the maximum tip difference over the last two cycles relative to the

@@ -210,25 +210,32 @@ def table(quick: bool) -> tuple[list[Row], dict[str, float]]:
 def table_with_notes(quick: bool) -> tuple[list[Row], dict[str, float], list[str]]:
     """:func:`table` and the lines printed below it (reference checks, Exudyn)."""
     from pipelines.peers_exudyn import available
+    from pipelines.progress import Progress
 
     rows: list[Row] = []
     ref_err: dict[str, float] = {}
     notes: list[str] = []
-    for scene in _scenes(quick):
+    scenes = _scenes(quick)
+    candidates = _candidates(quick)
+    bar = Progress("bench sim", total=len(scenes) * (len(candidates) + 2))
+    for scene in scenes:
         # undamped spin-up: Radau must follow the stiff axial modes at tight tolerances,
         # so its reference is looser (and checked like the others)
         spin = scene.damping[1] == 0.0
         rtol_ref = 1e-7 if spin else 1e-9
         ref = _reference(scene, quick, rtol_ref)
+        bar.update(1)
         check = _reference(scene, quick, rtol_ref * 30.0)
+        bar.update(1)
         ref_err[scene.name] = _error(check, ref, scene.window)[1]
         duration = float(scene.t_s[-1] - scene.t_s[0])
         rows.append(
             Row(scene.name, "reference fe-corot", f"{ref.settings['n_elements']} elements, "
                 f"rtol {rtol_ref:g}", ref.wall_time_s / duration, 0.0, 0.0)
         )  # fmt: skip
-        for model, setting, run_model in _candidates(quick):
+        for model, setting, run_model in candidates:
             res = run_model(scene)
+            bar.update(1)
             err, rel = _error(res, ref, scene.window)
             rows.append(Row(scene.name, model, setting, res.wall_time_s / duration, err, rel))
             if setting == "8 elements, rtol 1e-9" and ref.settings["n_elements"] == 12:
@@ -240,6 +247,7 @@ def table_with_notes(quick: bool) -> tuple[list[Row], dict[str, float], list[str
                 )
         if available():
             rows += _exudyn_rows(scene, quick, ref, rtol_ref, notes)
+    bar.close()
     return rows, ref_err, notes
 
 
