@@ -56,6 +56,10 @@ class Scene:
     damping: tuple[float, float]
 
 
+#: The setting of the row that shows 1e-6 on the reciprocating scene.
+_ROW_1E6 = "8 elements, rtol 1e-9"
+
+
 def _scenes(quick: bool) -> list[Scene]:
     rig = BeamProperties.from_config(BeamConfig())
     drive_cfg, damp = DriveConfig(), DampingConfig()
@@ -125,7 +129,7 @@ def _candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult
         out += [
             ("modal", "6 modes, rtol 1e-9", modal(6, 1e-9)),
             # the 1e-6 row: against the 12-element reference (its own error printed below)
-            ("fe-corot", "8 elements, rtol 1e-9", fe("corot", 8, 1e-9)),
+            ("fe-corot", _ROW_1E6, fe("corot", 8, 1e-9)),
             ("fe-corot", "2 elements, rtol 1e-8", fe("corot", 2, 1e-8)),
             ("fe-corot", "4 elements, rtol 1e-8", fe("corot", 4, 1e-8)),
             ("fe-flxdyn", "2 elements, rtol 1e-6", fe("flxdyn", 2, 1e-6)),
@@ -234,11 +238,15 @@ def table_with_notes(quick: bool) -> tuple[list[Row], dict[str, float], list[str
                 f"rtol {rtol_ref:g}", ref.wall_time_s / duration, 0.0, 0.0)
         )  # fmt: skip
         for model, setting, run_model in candidates:
-            res = run_model(scene)
             bar.update(1)
+            if setting == _ROW_1E6 and spin:
+                # the 1e-6 row is the damped scene's; on the undamped spin-ups scipy's
+                # Radau at rtol 1e-9 follows every axial vibration for 20 s (many minutes)
+                continue
+            res = run_model(scene)
             err, rel = _error(res, ref, scene.window)
             rows.append(Row(scene.name, model, setting, res.wall_time_s / duration, err, rel))
-            if setting == "8 elements, rtol 1e-9" and ref.settings["n_elements"] == 12:
+            if setting == _ROW_1E6 and ref.settings["n_elements"] == 12:
                 # h^4: e12 = (e8 - e12) (8/12)^4 / (1 - (8/12)^4)
                 r4 = (8.0 / 12.0) ** 4
                 notes.append(
