@@ -3,8 +3,9 @@
 A run of the built-in synthetic bench (60 s, or 10 s with ``--quick``: 400 Hz DAQ,
 15 frames/s 2048x1536 JPEG) is captured first (not timed as processing), then processed
 as ``beambench process --rrd`` does: read the log, calibrate from the registration
-object, decode and measure every frame on all cores, align the clocks, reconstruct from
-the strains, simulate, write the results file, stream everything to an ``.rrd``.
+object, decode and measure every frame on all cores while a thread reconstructs from
+the strains and simulates, align the clocks, write the results file, stream everything to
+an ``.rrd``.
 Each step's wall time is printed with the errors against the synthetic truth.
 The split of the frame step into JPEG decoding and measuring comes from timing both on
 a sample of frames in one process.
@@ -82,27 +83,32 @@ def run(quick: bool) -> int:
         f"{ds.sizes['time']} DAQ samples, log {size_mb:.0f} MB) on {os.cpu_count()} cores"
     )
     print(f"(capture with rendering, not counted: {capture_s:.1f} s)")
+    # The model side runs in a thread during the frames (its rows are inside theirs).
     rows = [
         ("read log", t.read_s),
         ("calibrate (registration)", t.calibrate_s),
         (f"frames: JPEG decode (~{share:.0%})", t.measure_s * share),
         (f"frames: measure (~{1 - share:.0%})", t.measure_s * (1 - share)),
+        ("  during the frames: strain reconstruction", -t.strain_s),
+        ("  during the frames: free-decay search", -t.damping_s),
+        (f"  during the frames: simulate ({ds.attrs['sim_model']})", -t.simulate_s),
+        ("wait for the simulation after the frames", t.model_wait_s),
         ("align clocks", t.align_s),
-        ("strain reconstruction", t.strain_s),
-        ("free-decay search", t.damping_s),
-        (f"simulate ({ds.attrs['sim_model']})", t.simulate_s),
         ("write results", t.write_s),
         ("Rerun .rrd", t.viewer_s),
     ]
-    print(f"{'step':38s} | {'wall s':>7s} | share")
-    print("-" * 58)
+    print(f"{'step':46s} | {'wall s':>7s} | share")
+    print("-" * 66)
     for name, sec in rows:
-        print(f"{name:38s} | {sec:7.2f} | {sec / total_s:5.1%}")
-    print("-" * 58)
+        if sec < 0:  # overlapped: shown, not a share of the total
+            print(f"{name:46s} | {-sec:7.2f} |   (overlapped)")
+        else:
+            print(f"{name:46s} | {sec:7.2f} | {sec / total_s:5.1%}")
+    print("-" * 66)
     per_minute = total_s * 60.0 / duration_s
     verdict = "meets" if per_minute <= TARGET_S_PER_MINUTE else "misses"
     print(
-        f"{'total':38s} | {total_s:7.2f} |  = {per_minute:.1f} s per bench minute "
+        f"{'total':46s} | {total_s:7.2f} |  = {per_minute:.1f} s per bench minute "
         f"({verdict} the {TARGET_S_PER_MINUTE:g} s target)"
     )
     print(f"frames per second through decode + measure: {n_frames / t.measure_s:.1f}")

@@ -10,6 +10,7 @@ import json
 import logging
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,6 +60,7 @@ class Timings:
     strain_s: float = 0.0
     damping_s: float = 0.0
     simulate_s: float = 0.0
+    model_wait_s: float = 0.0
     write_s: float = 0.0
     viewer_s: float = 0.0
 
@@ -174,6 +176,37 @@ def simulate_measured(
     return simulate_auto(beam, drive, t_s, tol=tol, **kwargs)
 
 
+def _model_side(
+    rig: Rig,
+    t_s: np.ndarray,
+    rocker_angle_rad: np.ndarray,
+    strain: np.ndarray,
+    model: str,
+    sim_tol: float,
+) -> tuple[StrainShape, np.ndarray, Any, SimResult, tuple[float, float, float]]:
+    """What a run gives without its frames: the strain-based tip, the free decay (if the
+    run holds one) and the simulation. Returns them with the wall time of each step."""
+    t0 = time.perf_counter()
+    shape = strain_shape_for(rig)
+    tip_strain = shape.tip_lateral_m(strain)
+    t1 = time.perf_counter()
+    decay = find_free_decay(rig, t_s, rocker_angle_rad, strain)
+    t2 = time.perf_counter()
+    if decay is not None:
+        log.info(
+            "free decay from %.2f s: log decrement %.4f, zeta %.4f, a0 = a1 = %.3g",
+            decay.release_s,
+            decay.log_decrement,
+            decay.damping_ratio,
+            decay.a_simulated,
+        )
+        sim = simulate_release(rig, t_s, strain, decay)
+    else:
+        sim = simulate_measured(rig, t_s, rocker_angle_rad, model, sim_tol)
+    t3 = time.perf_counter()
+    return shape, tip_strain, decay, sim, (t1 - t0, t2 - t1, t3 - t2)
+
+
 def process_run(
     log_path: Path,
     *,
@@ -199,27 +232,30 @@ def process_run(
     calibration = calibrate(run, rig, calibration_path)
     timings.calibrate_s = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    stations = tuple(float(x) for x in rig.gauges.positions_m)
-    with Progress("measure", total=run.frame_count) as bar:
-        frames = measure_frames(
-            iter_frames(log_path),
-            calibration,
-            stations_m=stations,
-            workers=workers,
-            progress=bar.update,
+    # The model side (strain shape, free-decay search, simulation) needs only the DAQ
+    # samples: it runs in a thread while the worker processes measure the frames, on the
+    # core that would otherwise idle through the simulation afterwards (the solver's time
+    # is then shared with the workers; its steps are timed inside the thread).
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="model") as side:
+        model_side = side.submit(
+            _model_side, rig, t_s, samples.rocker_angle_rad, samples.strain, model, sim_tol
         )
-    cols = as_arrays(frames)
-    timings.measure_s = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    shape = strain_shape_for(rig)
-    tip_strain = shape.tip_lateral_m(samples.strain)
-    timings.strain_s = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    decay = find_free_decay(rig, t_s, samples.rocker_angle_rad, samples.strain)
-    timings.damping_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        stations = tuple(float(x) for x in rig.gauges.positions_m)
+        with Progress("measure", total=run.frame_count) as bar:
+            frames = measure_frames(
+                iter_frames(log_path),
+                calibration,
+                stations_m=stations,
+                workers=workers,
+                progress=bar.update,
+            )
+        cols = as_arrays(frames)
+        timings.measure_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        shape, tip_strain, decay, sim, side_timings = model_side.result()
+        timings.model_wait_s = time.perf_counter() - t0
+    timings.strain_s, timings.damping_s, timings.simulate_s = side_timings
 
     t0 = time.perf_counter()
     frame_t_cam_s = (cols["t_ns"] - t_zero_ns).astype(float) * 1e-9
@@ -236,20 +272,6 @@ def process_run(
         log.warning("camera-to-DAQ alignment failed (%s); using the logged times", alignment.reason)
         frame_t_s = frame_t_cam_s
     timings.align_s = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    if decay is not None:
-        log.info(
-            "free decay from %.2f s: log decrement %.4f, zeta %.4f, a0 = a1 = %.3g",
-            decay.release_s,
-            decay.log_decrement,
-            decay.damping_ratio,
-            decay.a_simulated,
-        )
-        sim = simulate_release(rig, t_s, samples.strain, decay)
-    else:
-        sim = simulate_measured(rig, t_s, samples.rocker_angle_rad, model, sim_tol)
-    timings.simulate_s = time.perf_counter() - t0
 
     attrs = {
         "source_log": str(log_path),
