@@ -390,37 +390,6 @@ class KelvinVoigtAncfSystem(AncfSystem):
         shape = (slice(None),) + (None,) * extra_axes
         return _kelvin_voigt_force(gh, dgh, self.fe.ea_p[shape], self.fe.ei_p[shape], self.a1)
 
-    def rhs(self, t: float, y: FloatArray) -> FloatArray:
-        return self.rhs_stages(np.array([t]), y[None, :])[0]
-
-    def rhs_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
-        nf = self.nf
-        d, v = ys[:, :nf].T, ys[:, nf:].T
-        om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
-        al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
-        gh = self.gh0[..., None] + self.bf @ d
-        gen = self._force(gh, self.bf @ v, 1)
-        acc = (
-            -self.minv_bt @ gen
-            - (2.0 * om) * (self.minv_mj_ff @ v)
-            - al * (self.mj_e0[:, None] + self.minv_mj_ff @ d)
-            + (om * om) * (self.m_e0[:, None] + self.m_ff @ d)
-            - self.a0 * v
-        )
-        return np.concatenate([v, acc]).T
-
-    def _force_derivatives(self, gh: FloatArray, dgh: FloatArray) -> FloatArray:
-        npert = 8 if self.a1 != 0.0 else 4
-        step = 1e-30
-        ghc = np.repeat(gh[..., None], npert, axis=-1).astype(complex)
-        dghc = np.repeat(dgh[..., None], npert, axis=-1).astype(complex)
-        for k in range(4):
-            ghc[k, ..., k] += 1j * step
-            if npert == 8:
-                dghc[k, ..., 4 + k] += 1j * step
-        f = self._force(ghc, dghc, 2)
-        return np.asarray(f.imag.reshape(4, *gh.shape[1:], npert) / step)
-
 
 def simulate_fe_kelvin_voigt(
     beam: BeamProperties,

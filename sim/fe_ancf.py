@@ -22,6 +22,7 @@ Dof order: node k (0 at the clamp) holds ``[x, y, x', y']`` at indices ``4k .. 4
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -377,14 +378,20 @@ class AncfSystem:
     def _gh(self, d: FloatArray) -> FloatArray:
         return self.gh0 + self.bf @ d
 
+    def _force(self, gh: Any, dgh: Any, extra_axes: int) -> Any:
+        """Generalized internal force at the Gauss points (elastic + Eq. 28's ``a1 K_T``
+        rate), real or complex; ``gh``, ``dgh`` are (4, P) followed by ``extra_axes``
+        axes. Subclasses change the damping law here and only here."""
+        shape = (slice(None),) + (None,) * extra_axes
+        return _damped_force_fast(gh, dgh, self.fe.ea_p[shape], self.fe.ei_p[shape], self.a1)
+
     def rhs(self, t: float, y: FloatArray) -> FloatArray:
         nf = self.nf
         d, v = y[:nf], y[nf:]
         om, al = self._hub(t)
-        fe = self.fe
         gh = self._gh(d)
         dgh = self.bf @ v if self.a1 != 0.0 else gh
-        gen = _damped_force_fast(gh, dgh, fe.ea_p, fe.ei_p, self.a1)
+        gen = self._force(gh, dgh, 0)
         acc = (
             -self.minv_bt @ gen
             - 2.0 * om * (self.minv_mj_ff @ v)
@@ -400,10 +407,9 @@ class AncfSystem:
         d, v = ys[:, :nf].T, ys[:, nf:].T  # (nf, k)
         om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
         al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
-        fe = self.fe
         gh = self.gh0[..., None] + self.bf @ d  # (4, P, k)
         dgh = self.bf @ v if self.a1 != 0.0 else gh
-        gen = _damped_force_fast(gh, dgh, fe.ea_p[:, None], fe.ei_p[:, None], self.a1)
+        gen = self._force(gh, dgh, 1)
         acc = (
             -self.minv_bt @ gen
             - (2.0 * om) * (self.minv_mj_ff @ v)
@@ -421,7 +427,6 @@ class AncfSystem:
         The force at a Gauss point depends only on ``gh`` and ``dgh`` there, so eight
         (four without damping) complex evaluations give the exact tangent, third derivatives
         of the energy (the Kelvin-Voigt term's dependence on the state) included."""
-        fe = self.fe
         npert = 8 if self.a1 != 0.0 else 4
         step = 1e-30
         ghc = np.repeat(gh[..., None], npert, axis=-1).astype(complex)
@@ -430,7 +435,7 @@ class AncfSystem:
             ghc[k, ..., k] += 1j * step
             if npert == 8:
                 dghc[k, ..., 4 + k] += 1j * step
-        f = _damped_force_fast(ghc, dghc, fe.ea_p[:, None, None], fe.ei_p[:, None, None], self.a1)
+        f = self._force(ghc, dghc, 2)
         return f.imag.reshape(4, *gh.shape[1:], npert) / step
 
     def jac_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
