@@ -213,3 +213,29 @@ def read_run_events(path: Path) -> list[object]:
     from pipelines.process import load_log
 
     return list(load_log(path).events)
+
+
+def test_a_simulation_error_in_the_model_thread_is_one_error_line_and_no_results(
+    captured: tuple[Path, object],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The simulation runs in a thread beside the frame workers: its failure must still
+    reach the user as the one ``error:`` line, and no results file may appear."""
+    import pipelines.process
+    from pipelines.cli import main
+    from pipelines.errors import BeambenchError
+
+    log_path, _ = captured
+
+    def fail(*_args: object, **_kwargs: object) -> None:
+        raise BeambenchError(f"{log_path}: the rocker angle cannot drive the simulation")
+
+    monkeypatch.setattr(pipelines.process, "simulate_measured", fail)
+    out = tmp_path / "r.nc"
+    status = main(["process", str(log_path), "--out", str(out), "--workers", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2
+    assert err == [f"error: {log_path}: the rocker angle cannot drive the simulation"]
+    assert not out.exists()
