@@ -8,10 +8,9 @@ scene raises :class:`ModelNotAvailable` rather than substituting another model.
 
 from __future__ import annotations
 
-import importlib
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,21 +56,6 @@ class SceneRun:
     extras: dict[str, Any] = field(default_factory=dict)
 
 
-def _external(module: str, name: str) -> Callable[..., SimResult]:
-    try:
-        mod = importlib.import_module(module)
-    except ModuleNotFoundError as exc:
-        if exc.name != module:
-            raise
-        raise ModelNotAvailable(
-            f"{module} is not available yet (issue #3, finite elements)"
-        ) from None
-    fn = getattr(mod, name, None)
-    if fn is None:
-        raise ModelNotAvailable(f"{module}.{name} is not available yet (issue #3)")
-    return fn
-
-
 def _dynamic(
     model: str,
     beam: BeamProperties,
@@ -102,14 +86,17 @@ def _dynamic(
             rtol=1e-6 if rtol is None else rtol,
             atol=1e-12,
         )
+    kw: dict[str, Any]
     if model == "fe":
-        fe = _external("sim.fe", "simulate_fe")
+        from sim.fe import simulate_fe
+
         kw = {} if rtol is None else {"rtol": rtol}
-        return fe(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
+        return simulate_fe(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
     if model == "auto":
-        auto = _external("sim.auto", "simulate_auto")
+        from sim.auto import simulate_auto
+
         kw = {} if rtol is None else {"tol": rtol}
-        return auto(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
+        return simulate_auto(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
     raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
 
 
@@ -189,8 +176,9 @@ def static(
     if model == "modal":
         res = solve_static_modal(props, force, n_modes=n_modes, gauge_positions_m=gauge_positions_m)
     elif model == "fe":
-        fe = _external("sim.fe", "solve_static_fe")
-        res = fe(props, force, gauge_positions_m=gauge_positions_m)
+        from sim.fe import solve_static_fe
+
+        res = solve_static_fe(props, force, gauge_positions_m=gauge_positions_m)
     elif model == "auto":
         res = solve_static_elastica(props, force, gauge_positions_m=gauge_positions_m)
     elif model == "rigid":

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from pipelines.errors import BeambenchError
 from pipelines.rig import Rig, load_rig
 
 
@@ -19,7 +18,3 @@ def add_rig_argument(parser: argparse.ArgumentParser) -> None:
 
 def rig_from_args(args: argparse.Namespace) -> Rig:
     return load_rig(args.rig)
-
-
-def not_available(command: str, issue: int) -> int:
-    raise BeambenchError(f"'beambench {command}' is not available yet (tracked in issue #{issue})")

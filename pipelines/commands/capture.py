@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
 from typing import Any
 
@@ -69,23 +68,11 @@ def run(args: argparse.Namespace) -> int:
             f"--duration must be a positive number of seconds, got {args.duration}"
         )
     if args.backend == "fake":
-        try:
-            synthetic = importlib.import_module("pipelines.synthetic")
-        except ImportError as exc:
-            raise BeambenchError(
-                f"--backend fake: the synthetic bench is not available ({exc})"
-            ) from None
-        make_synthetic_devices = getattr(synthetic, "make_synthetic_devices", None)
-        if make_synthetic_devices is None:
-            raise BeambenchError("--backend fake: the synthetic bench is not available yet")
-        try:
-            daq_device, camera, camera_info = make_synthetic_devices(
-                rig, args.duration, realtime=args.realtime, seed=rig.synthetic.seed
-            )
-        except ImportError as exc:  # a part of the synthetic bench has not landed yet
-            raise BeambenchError(
-                f"--backend fake: the synthetic bench is not available ({exc})"
-            ) from None
+        from pipelines.synthetic import make_synthetic_devices
+
+        daq_device, camera, camera_info = make_synthetic_devices(
+            rig, args.duration, realtime=args.realtime, seed=rig.synthetic.seed
+        )
     else:
         daq_device, camera, camera_info = hardware_devices(rig)
     with Progress("capture", total=args.duration) as bar:
