@@ -16,6 +16,7 @@ from typing import NoReturn
 
 from pipelines import __version__
 from pipelines.errors import BeambenchError
+from pipelines.threads import limit_blas_threads
 
 COMMANDS = (
     "demo",
@@ -66,6 +67,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return EXIT_BAD_INPUT
+    limit_blas_threads()
     try:
         return int(args._run(args) or 0)
     except BeambenchError as exc:
