@@ -418,6 +418,7 @@ def simulate_fe_kelvin_voigt(
         method=method,
         rhs_stages=system.rhs_stages,
         jac_stages=system.jac_stages,
+        rhs_jac_stages=system.rhs_jac_stages,
     )
     r, _ = system.sample(traj.y, np.array([0.0, beam.length_m]))
     lat = r[..., 1]

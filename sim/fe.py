@@ -167,11 +167,12 @@ def simulate_fe(
         e.g. ``result.settings["final_state"]`` of an earlier run with the same
         formulation and ``n_elements``.
     method : "auto" (default), "radau5", "BDF", "Radau" or "LSODA". "radau5" (``corot``
-        only: it needs the stage Jacobians) is our Radau IIA with full Newton and each
-        stage's exact Jacobian (:mod:`sim.radau`): the Kelvin-Voigt axial term a1 EA acts
-        along the rotating centre line, so a Jacobian frozen over a step (scipy's Radau
-        and BDF) makes Newton fail and the step collapse; at rtol ~1e-4 with atol = rtol it
-        is 4-5x faster than BDF on the paper's scene (what :mod:`sim.auto` uses). At tight
+        only: it needs the stage Jacobians) is our Radau IIA with each stage's exact
+        Jacobian at the predicted stages (:mod:`sim.radau`): the Kelvin-Voigt axial term
+        a1 EA acts along the rotating centre line, so a Jacobian frozen over a step (scipy's
+        Radau and BDF) makes Newton fail and the step collapse; with atol = rtol (1e-4 to
+        1e-6) it is 8-10x faster than BDF at equal error on the paper's scene (what
+        :mod:`sim.auto` and the speed table use). At tight
         tolerances with a tiny atol (references, rtol 1e-6 and below) it is slower, so
         "auto" stays with scipy: BDF when a1 > 0, Radau when ``a1_s == 0`` (undamped stiff
         axial modes make high-order BDF crawl: it is not A-stable).
@@ -223,6 +224,7 @@ def simulate_fe(
         method=method,
         rhs_stages=getattr(system, "rhs_stages", None),
         jac_stages=jac_stages,
+        rhs_jac_stages=getattr(system, "rhs_jac_stages", None),
     )
     stations = np.linspace(0.0, beam.length_m, ns)
     lat, lon, strain = _deflections(system, traj.y, beam, stations, gauges)

@@ -33,6 +33,7 @@ FloatArray = NDArray[np.float64]
 
 N_GAUSS = 4  # bending: 4-point Gauss (exact for the linear part)
 N_GAUSS_AXIAL = 2  # axial: reduced 2-point Gauss, against membrane locking
+_CS_STEP = 1e-30  # complex step: no cancellation, so any tiny step is exact to rounding
 _J2 = np.array([[0.0, -1.0], [1.0, 0.0]])  # rotation by +90 degrees (k x)
 
 
@@ -122,38 +123,43 @@ def _damped_force_fast(
 ) -> FloatArray:
     """Energy gradient plus ``a1`` times its rate along ``dgh``: (4, P, ...) each ->
     (4 P, ...). Pointwise and analytic, so it also takes complex arguments (complex-step
-    derivatives)."""
+    derivatives).
+
+    With ``g = r'``, ``h = r''``, ``n = |g|^2``, ``c = g x h``, ``b1 = EI c / n^3`` and
+    ``k = EA (1 - n^-1/2) - 3 b1 c / n``, the gradient is ``(k g + b1 perp'(h), b1 perp(g))``
+    with ``perp(x) = (-x2, x1)``, ``perp'(x) = (x2, -x1)``; its rate adds the same with
+    ``k, b1`` replaced by their rates. The arrays are small, so the cost is the number of
+    numpy operations (this runs at every Newton iteration): the fewest are written here,
+    and callers in a hot loop pass 1-D components, (4, M), and ``ea``, ``ei`` of shape (M,)
+    (a broadcast operation costs twice a plain one)."""
     g1, g2, h1, h2 = gh
-    d1, d2, e1, e2 = dgh
     n = g1 * g1 + g2 * g2
     inv_n = 1.0 / n
     isq = np.sqrt(inv_n)
     c = g1 * h2 - g2 * h1
-    b1 = ei * c * inv_n * inv_n * inv_n
-    b2 = b1 * c * inv_n
-    k = ea * (1.0 - isq) - 3.0 * b2
-    out = np.empty((4, *n.shape), dtype=np.result_type(gh, dgh))
-    shape = (4 * n.shape[0], *n.shape[1:])
+    e3 = ei * (inv_n * inv_n * inv_n)
+    b1 = e3 * c
+    b1n = b1 * inv_n
+    k = ea * (1.0 - isq) - 3.0 * (b1n * c)  # not ea - ea isq: |r'| - 1 ~ 1e-6 cancels
     if a1 == 0.0:
-        out[0] = k * g1 + b1 * h2
-        out[1] = k * g2 - b1 * h1
-        out[2] = -b1 * g2
-        out[3] = b1 * g1
-        return out.reshape(shape)
-    dn = 2.0 * (g1 * d1 + g2 * d2)
-    dc = d1 * h2 + g1 * e2 - d2 * h1 - g2 * e1
-    db1 = ei * inv_n * inv_n * inv_n * (dc - 3.0 * c * dn * inv_n)
-    db2 = b1 * inv_n * (2.0 * dc - 4.0 * c * dn * inv_n)
-    dk = (0.5 * ea * isq * inv_n) * dn - 3.0 * db2
-    ka = k + a1 * dk
-    kb = a1 * k
-    b1a = b1 + a1 * db1
-    b1b = a1 * b1
-    out[0] = ka * g1 + kb * d1 + b1a * h2 + b1b * e2
-    out[1] = ka * g2 + kb * d2 - b1a * h1 - b1b * e1
-    out[2] = -b1a * g2 - b1b * d2
-    out[3] = b1a * g1 + b1b * d1
-    return out.reshape(shape)
+        parts = [k * g1 + b1 * h2, k * g2 - b1 * h1, -b1 * g2, b1 * g1]
+    else:
+        d1, d2, e1, e2 = dgh
+        gd = g1 * d1 + g2 * d2  # n' / 2
+        dc = (d1 * h2 - d2 * h1) + (g1 * e2 - g2 * e1)
+        q = c * gd * inv_n
+        # b1' = EI (c' n^-3 - 3 c n' n^-4); (b1 c / n)' = b1 n^-1 (2 c' - 4 c n' / n)
+        b1a = b1 + a1 * (e3 * (dc - 6.0 * q))
+        ka = k + a1 * (ea * isq * inv_n * gd - 6.0 * b1n * (dc - 4.0 * q))
+        kb = a1 * k
+        b1b = a1 * b1
+        parts = [
+            ka * g1 + kb * d1 + (b1a * h2 + b1b * e2),
+            ka * g2 + kb * d2 - (b1a * h1 + b1b * e1),
+            -(b1a * g2 + b1b * d2),
+            b1a * g1 + b1b * d1,
+        ]
+    return np.concatenate(parts).reshape(4 * n.shape[0], *n.shape[1:])
 
 
 @dataclass
@@ -359,6 +365,20 @@ class AncfSystem:
             self.minv_bt.reshape(self.nf, 4, npt).transpose(0, 2, 1).reshape(self.nf, -1)
         )
         self.eye = np.eye(self.nf)
+        # tangent assembly, element by element: K_e = sum_q B_q^T D_q B_q is one product of
+        # the pointwise derivatives (rows: batch, element; columns: q, out, in) with
+        # W[(q, a, b), (i, j)] = B[q, a, i] B[q, b, j] (the mesh is uniform), then a scatter
+        # of the blocks' free-free entries into K (nf, nf)
+        nq = fe.bmat.shape[0]
+        self._nq = nq
+        self._w_tangent = np.einsum("qai,qbj->qabij", fe.bmat, fe.bmat).reshape(nq * 16, 64)
+        rows = np.broadcast_to(fe.edofs[:, :, None], (fe.n_elements, 8, 8)).ravel()
+        cols = np.broadcast_to(fe.edofs[:, None, :], (fe.n_elements, 8, 8)).ravel()
+        first = int(fr[0])
+        self._keep = (rows >= first) & (cols >= first)
+        self._target = ((rows - first) * self.nf + (cols - first))[self._keep]
+        self._scatter: dict[int, NDArray[np.intp]] = {}
+        self._stiffness: dict[tuple[int, ...], tuple[FloatArray, FloatArray]] = {}
 
     def full(self, d: FloatArray) -> FloatArray:
         e = self.fe.e_ref.copy()
@@ -382,8 +402,21 @@ class AncfSystem:
         """Generalized internal force at the Gauss points (elastic + Eq. 28's ``a1 K_T``
         rate), real or complex; ``gh``, ``dgh`` are (4, P) followed by ``extra_axes``
         axes. Subclasses change the damping law here and only here."""
-        shape = (slice(None),) + (None,) * extra_axes
-        return _damped_force_fast(gh, dgh, self.fe.ea_p[shape], self.fe.ei_p[shape], self.a1)
+        shape = gh.shape[1:]
+        stiff = self._stiffness.get(shape)
+        if stiff is None:  # per-point EA, EI spread over the extra axes, flattened
+            ea, ei = (
+                np.ascontiguousarray(
+                    np.broadcast_to(x.reshape(-1, *(1,) * extra_axes), shape)
+                ).ravel()
+                for x in (self.fe.ea_p, self.fe.ei_p)
+            )
+            stiff = (ea, ei)
+            self._stiffness[shape] = stiff
+        flat = _damped_force_fast(
+            gh.reshape(4, -1), dgh.reshape(4, -1), stiff[0], stiff[1], self.a1
+        )
+        return flat.reshape(4 * shape[0], *shape[1:])
 
     def rhs(self, t: float, y: FloatArray) -> FloatArray:
         nf = self.nf
@@ -401,15 +434,23 @@ class AncfSystem:
         )
         return np.concatenate([v, acc])
 
-    def rhs_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
-        """The right-hand side at several points at once: (k,), (k, n_state) -> (k, n_state)."""
+    def _stage_terms(
+        self, ts: FloatArray, ys: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Hub rate and acceleration (k,), coordinates and rates (nf, k), and ``gh``,
+        ``dgh`` (4, P, k) at the Gauss points."""
         nf = self.nf
         d, v = ys[:, :nf].T, ys[:, nf:].T  # (nf, k)
         om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
         al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
         gh = self.gh0[..., None] + self.bf @ d  # (4, P, k)
         dgh = self.bf @ v if self.a1 != 0.0 else gh
-        gen = self._force(gh, dgh, 1)
+        return om, al, d, v, gh, dgh
+
+    def _rhs_from_force(
+        self, om: FloatArray, al: FloatArray, d: FloatArray, v: FloatArray, gen: FloatArray
+    ) -> FloatArray:
+        """(k, n_state) right-hand sides from the Gauss-point forces ``gen`` (4 P, k)."""
         acc = (
             -self.minv_bt @ gen
             - (2.0 * om) * (self.minv_mj_ff @ v)
@@ -419,50 +460,63 @@ class AncfSystem:
         )
         return np.concatenate([v, acc]).T
 
-    def _force_derivatives(self, gh: FloatArray, dgh: FloatArray) -> FloatArray:
-        """Pointwise derivatives of the damped force (gradient + a1 K_T rate) by complex
-        step: ``gh``, ``dgh`` (4, P, k) -> (4, P, k, 4) w.r.t. ``gh``, then (with damping)
-        (4, P, k, 4) w.r.t. ``dgh``, stacked on the last axis.
+    def rhs_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
+        """The right-hand side at several points at once: (k,), (k, n_state) -> (k, n_state)."""
+        om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
+        return self._rhs_from_force(om, al, d, v, self._force(gh, dgh, 1))
+
+    def _force_derivatives(self, gh: FloatArray, dgh: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The damped force (gradient + a1 K_T rate) and its pointwise derivatives by
+        complex step: ``gh``, ``dgh`` (4, P, k) -> force (4 P, k) and derivatives
+        (4, P, k, 4) w.r.t. ``gh``, then (with damping) (4, P, k, 4) w.r.t. ``dgh``,
+        stacked on the last axis.
 
         The force at a Gauss point depends only on ``gh`` and ``dgh`` there, so eight
         (four without damping) complex evaluations give the exact tangent, third derivatives
-        of the energy (the Kelvin-Voigt term's dependence on the state) included."""
+        of the energy (the Kelvin-Voigt term's dependence on the state) included; their
+        real part is the force itself (the perturbation is purely imaginary)."""
         npert = 8 if self.a1 != 0.0 else 4
-        step = 1e-30
-        ghc = np.repeat(gh[..., None], npert, axis=-1).astype(complex)
-        dghc = np.repeat(dgh[..., None], npert, axis=-1).astype(complex)
-        for k in range(4):
-            ghc[k, ..., k] += 1j * step
-            if npert == 8:
-                dghc[k, ..., 4 + k] += 1j * step
+        # one-hot imaginary perturbations: component k of gh in column k, of dgh in 4 + k
+        pert = np.zeros((2, 4, npert), dtype=complex)
+        pert[0, :, :4] = 1j * _CS_STEP * np.eye(4)
+        if npert == 8:
+            pert[1, :, 4:] = 1j * _CS_STEP * np.eye(4)
+        extra = (None,) * (gh.ndim - 1)
+        ghc = gh[..., None] + pert[0][(slice(None), *extra)]
+        dghc = dgh[..., None] + pert[1][(slice(None), *extra)]
         f = self._force(ghc, dghc, 2)
-        return f.imag.reshape(4, *gh.shape[1:], npert) / step
+        return f[..., 0].real, f.imag.reshape(4, *gh.shape[1:], npert) * (1.0 / _CS_STEP)
 
-    def jac_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
-        """Exact Jacobians of :meth:`rhs` at several points: (k,), (k, n) -> (k, n, n)."""
+    def rhs_jac_stages(self, ts: FloatArray, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`rhs_stages` and :meth:`jac_stages` at the same points in one evaluation
+        of the force: (k,), (k, n) -> (k, n), (k, n, n)."""
         nf = self.nf
         npts = ts.size
-        d, v = ys[:, :nf].T, ys[:, nf:].T
-        om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
-        al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
-        gh = self.gh0[..., None] + self.bf @ d  # (4, P, k)
-        dgh = self.bf @ v if self.a1 != 0.0 else gh
-        local = self._force_derivatives(gh, dgh)  # (4 out, P, k, npert)
-        npert = local.shape[-1]
-        # per point: (out, in) blocks times that point's B (4, nf), then B^T M^-1 over points
-        lt = local.reshape(4, *local.shape[1:3], npert // 4, 4).transpose(1, 2, 3, 0, 4)
-        y_pts = lt @ self.b_pts[:, None, None]  # (P, k, npert/4, 4, nf)
-        y_pts = y_pts.transpose(1, 2, 0, 3, 4).reshape(npts, npert // 4, -1, nf)
-        kk = self.minv_bt_pts @ y_pts  # (k, npert/4, nf, nf): M^-1 dF/d(d), M^-1 dF/d(v)
+        om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
+        gen, local = self._force_derivatives(gh, dgh)  # (4P, k), (4 out, P, k, npert)
+        ns = local.shape[-1] // 4  # derivatives w.r.t. gh, then (damped) w.r.t. dgh
+        ne, nb = self.fe.n_elements, npts * ns
+        dloc = local.reshape(4, ne, self._nq, npts, ns, 4).transpose(3, 4, 1, 2, 0, 5)
+        k_el = (dloc.reshape(nb * ne, -1) @ self._w_tangent).reshape(nb, -1)[:, self._keep]
+        idx = self._scatter.get(nb)
+        if idx is None:
+            idx = (np.arange(nb)[:, None] * (nf * nf) + self._target[None, :]).ravel()
+            self._scatter[nb] = idx
+        k_free = np.bincount(idx, weights=k_el.ravel(), minlength=nb * nf * nf)
+        kk = self.minv @ k_free.reshape(npts, ns, nf, nf)  # M^-1 dF/d(d), M^-1 dF/d(v)
         jac = np.zeros((npts, 2 * nf, 2 * nf))
         jac[:, :nf, nf:] = self.eye
         jac[:, nf:, :nf] = (
             -kk[:, 0] - al[:, None, None] * self.minv_mj_ff + (om * om)[:, None, None] * self.m_ff
         )
         jac[:, nf:, nf:] = -2.0 * om[:, None, None] * self.minv_mj_ff - self.a0 * self.eye
-        if npert == 8:
+        if ns == 2:
             jac[:, nf:, nf:] -= kk[:, 1]
-        return jac
+        return self._rhs_from_force(om, al, d, v, gen), jac
+
+    def jac_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
+        """Exact Jacobians of :meth:`rhs` at several points: (k,), (k, n) -> (k, n, n)."""
+        return self.rhs_jac_stages(ts, ys)[1]
 
     def jac(self, t: float, y: FloatArray) -> FloatArray:
         """Exact Jacobian of :meth:`rhs` (n_state, n_state)."""

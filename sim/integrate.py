@@ -53,6 +53,7 @@ def integrate(
     first_step_s: float | None = None,
     rhs_stages: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
     jac_stages: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
+    rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None = None,
 ) -> Trajectory:
     """Integrate ``dy/dt = rhs(t, y)`` from ``t_eval_s[0]`` and return ``y`` at ``t_eval_s``.
 
@@ -69,6 +70,8 @@ def integrate(
         used by "radau5" (default: ``rhs`` called point by point).
     jac_stages : ``jac`` at several points, (k,), (k, n) -> (k, n, n): "radau5" then runs
         the full Newton iteration (see :func:`sim.radau.radau5`).
+    rhs_jac_stages : ``(rhs_stages, jac_stages)`` at the same points in one call; used by
+        "radau5" in place of the two where both are needed.
 
     Raises
     ------
@@ -82,7 +85,9 @@ def integrate(
     if t.size == 1:
         return Trajectory(y_start[None, :].copy(), 0.0, 0, 0, 0)
     if method == "radau5":
-        return _radau5(rhs, jac, t, y_start, rtol, atol, first_step_s, rhs_stages, jac_stages)
+        return _radau5(
+            rhs, jac, t, y_start, rtol, atol, first_step_s, rhs_stages, jac_stages, rhs_jac_stages
+        )
     kwargs: dict[str, object] = {"rtol": rtol, "atol": atol, "t_eval": t}
     kwargs["jac"] = jac
     if first_step_s is not None:
@@ -123,6 +128,7 @@ def _radau5(
     first_step_s: float | None,
     rhs_stages: Callable[[FloatArray, FloatArray], FloatArray] | None,
     jac_stages: Callable[[FloatArray, FloatArray], FloatArray] | None,
+    rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None,
 ) -> Trajectory:
     from sim.radau import radau5
 
@@ -138,5 +144,6 @@ def _radau5(
         atol=atol,
         first_step_s=first_step_s,
         jac_stages=jac_stages,
+        rhs_jac_stages=rhs_jac_stages,
     )
     return Trajectory(y, wall, stats.n_rhs, stats.n_jac, stats.n_lu, stats.n_steps)
