@@ -26,6 +26,8 @@ from numpy.polynomial import Legendre, Polynomial
 from numpy.polynomial import polynomial as pw
 from numpy.typing import NDArray
 
+from vision.sampling import median
+
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
 TUKEY_C = 4.685
 
@@ -79,10 +81,30 @@ def _to_power(degree: int) -> NDArray[np.float64]:
     return out
 
 
+@lru_cache(maxsize=8)
+def _tip_gradient(degree: int) -> NDArray[np.float64]:
+    """d centre(a_max) / d coefficients (the two edge offsets, then the shape)."""
+    return np.concatenate([[0.5, 0.5], _basis(np.array([1.0]), degree)[0]])
+
+
 def _basis(u: NDArray[np.float64], degree: int) -> NDArray[np.float64]:
     """(N, degree - 1) clamped shape functions u^2 P_k(2u - 1)."""
     leg = np.polynomial.legendre.legvander(2.0 * u - 1.0, degree - 2)
     return np.asarray(leg * (u * u)[:, None])
+
+
+def _basis_t(u: NDArray[np.float64], degree: int) -> NDArray[np.float64]:
+    """:func:`_basis` transposed, (degree - 1, N), built in that layout (numpy's own
+    Legendre recurrence, so the same values)."""
+    x = 2.0 * u - 1.0
+    v = np.empty((degree - 1, len(u)))
+    v[0] = x * 0 + 1
+    if degree > 2:
+        v[1] = x
+    for i in range(2, degree - 1):
+        v[i] = (v[i - 1] * x * (2 * i - 1) - v[i - 2] * (i - 1)) / i
+    v *= u * u
+    return v
 
 
 def correlation_inflation(res: NDArray[np.float64]) -> float:
@@ -111,18 +133,22 @@ def fit_centreline(
         return "beam edges too ragged"
     u = np.concatenate([left[:, 0], right[:, 0]]) / amax
     b = np.concatenate([left[:, 1], right[:, 1]])
-    side = np.concatenate([np.ones(nl), np.zeros(nr)])
-    a_mat = np.column_stack([side, 1.0 - side, _basis(u, degree)])
+    # The design matrix transposed, (coefficients, points): weighting and products then
+    # run along the points (with the points first each step loops over a short row).
+    a_t = np.empty((degree + 1, nl + nr))
+    a_t[0, :nl], a_t[0, nl:] = 1.0, 0.0
+    a_t[1] = 1.0 - a_t[0]
+    a_t[2:] = _basis_t(u, degree)
     w = np.ones(len(b))
-    coef = np.zeros(a_mat.shape[1])
+    coef = np.zeros(a_t.shape[0])
     sig = math.inf
     for it in range(4):
-        coef = _wlstsq(a_mat, b, w)
-        r = b - a_mat @ coef
+        coef = _wlstsq(a_t, b, w)
+        r = b - coef @ a_t
         if it == 0:
-            sig = 1.4826 * float(np.median(np.abs(r))) + 1e-12
+            sig = 1.4826 * median(np.abs(r)) + 1e-12
         else:
-            sig = 1.4826 * float(np.median(np.abs(r[w > 0]))) + 1e-12
+            sig = 1.4826 * median(np.abs(r[w > 0])) + 1e-12
         z = r / (TUKEY_C * sig)
         w = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
     keep = w > 0
@@ -130,18 +156,18 @@ def fit_centreline(
         return "beam edges too ragged"
     # Final fit: inliers, equal weights (the biweight only chose them).
     wk = keep.astype(np.float64)
-    coef = _wlstsq(a_mat, b, wk)
-    r = b - a_mat @ coef
-    dof = max(int(keep.sum()) - a_mat.shape[1], 1)
+    coef = _wlstsq(a_t, b, wk)
+    r = b - coef @ a_t
+    dof = max(int(keep.sum()) - a_t.shape[0], 1)
     s2 = float(np.sum(r[keep] ** 2)) / dof
     infl = max(correlation_inflation(r[:nl][keep[:nl]]), correlation_inflation(r[nl:][keep[nl:]]))
-    ak = a_mat[keep]
-    cov = np.linalg.inv(ak.T @ ak) * s2 * infl
-    g = np.concatenate([[0.5, 0.5], _basis(np.array([1.0]), degree)[0]])
+    ak = a_t[:, keep]
+    cov = np.linalg.inv(ak @ ak.T) * s2 * infl
+    g = _tip_gradient(degree)
     tip_sd = math.sqrt(max(float(g @ cov @ g), 0.0))
     # The prior's check: the same inliers with a free slope at the root.
-    free = np.column_stack([a_mat, u])[keep]
-    slope = float(_wlstsq(free, b[keep], np.ones(len(free)))[-1]) / amax
+    free = np.vstack([ak, u[keep]])
+    slope = float(_wlstsq(free, b[keep], np.ones(free.shape[1]))[-1]) / amax
     centre_u = _to_power(degree).T @ coef[2:]
     centre_u[0] += 0.5 * (coef[0] + coef[1])
     return CentreFit(
@@ -155,11 +181,13 @@ def fit_centreline(
     )
 
 
-def _wlstsq(a: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray:
-    # Normal equations of a small, well-conditioned basis (Legendre on [0, 1]): a tenth of
-    # the cost of an SVD solve, which matters at a frame rate.
-    aw = a * w[:, None]
-    return np.asarray(np.linalg.solve(aw.T @ a, aw.T @ b))
+def _wlstsq(a_t: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray:
+    """Weighted least squares with the design matrix transposed (coefficients, points).
+
+    Normal equations of a small, well-conditioned basis (Legendre on [0, 1]): a tenth of
+    the cost of an SVD solve, which matters at a frame rate."""
+    aw = a_t * w
+    return np.asarray(np.linalg.solve(aw @ a_t.T, aw @ b))
 
 
 def arc_length(centre: CentreLine, a_end: float) -> float:

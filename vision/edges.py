@@ -4,17 +4,23 @@ Working on the raw pixels (no resampling) keeps the edge estimate free of interp
 bias: each scan line across the strip gives a rising and a falling edge, located by the
 first moment of the intensity steps around the strongest step (exact for a box-sampled
 or symmetric-blurred step edge). The points are mapped to the plane afterwards.
+
+Layout: a strip's samples are held (position along the scan line, scan line) and every
+window about an edge (window sample, scan line). numpy then broadcasts the per-line
+quantities, and sums over a window, along the long axis; with the scan line first each
+operation would loop over a window of 9-18 samples at a time, several times slower.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.sampling import edge_gauss3, edge_moment
+from vision.sampling import edge_gauss3, median
 
 
 @dataclass
@@ -43,13 +49,13 @@ def strip_edges(
     polyline's slope."""
     d = centre_px[-1] - centre_px[0]
     columns = abs(d[0]) >= abs(d[1])
-    img = image if columns else image.T
     pts = centre_px if columns else centre_px[:, ::-1]
     # pts[:, 0] is now the scan-line index axis, pts[:, 1] the position along the line.
     order = np.argsort(pts[:, 0])
     pts = pts[order]
     hw = np.broadcast_to(np.asarray(half_width_px, dtype=np.float64), (len(pts),))[order]
-    h, w = img.shape  # rows = along-scan positions, cols = scan-line index
+    # Along-scan positions and scan-line indices (columns: rows and columns of the image).
+    h, w = image.shape if columns else image.shape[::-1]
     x0 = int(np.ceil(pts[0, 0]))
     x1 = int(np.floor(pts[-1, 0]))
     lines = np.arange(max(x0, 0), min(x1, w - 1) + 1)
@@ -57,158 +63,260 @@ def strip_edges(
     if lines.size < 2:
         return empty
     yc = np.interp(lines, pts[:, 0], pts[:, 1])
-    slope = np.gradient(yc, lines) if lines.size > 2 else np.zeros_like(yc)
+    # d yc / d line (lines one apart): central differences, one-sided at the ends (what
+    # np.gradient does for unit spacing, without its generic overhead).
+    slope = np.zeros_like(yc)
+    if lines.size > 2:
+        slope[1:-1] = (yc[2:] - yc[:-2]) / 2.0
+        slope[0], slope[-1] = yc[1] - yc[0], yc[-1] - yc[-2]
     half = np.interp(lines, pts[:, 0], hw) * np.sqrt(1.0 + slope**2)
     reach = int(np.ceil(np.max(half))) + margin_px + max_window
-    offs = np.arange(-reach, reach + 1)
-    rows = np.round(yc).astype(np.intp)[:, None] + offs[None, :]
-    inside = (rows.min(axis=1) >= 0) & (rows.max(axis=1) < h)
+    top = np.round(yc).astype(np.intp) - reach
+    inside = (top >= 0) & (top + 2 * reach < h)
     if not inside.any():
         return empty
-    lines, yc, half, rows = lines[inside], yc[inside], half[inside], rows[inside]
-    prof = img[rows, lines[:, None]].astype(np.float64)
-    diff = np.diff(prof, axis=1)  # step k sits at offs[k] + 0.5
-    base = rows[:, 0].astype(np.float64)
+    lines, yc, half, top = lines[inside], yc[inside], half[inside], top[inside]
+    n = len(lines)
+    # The samples (position along the line, line) as int16: 8-bit values, their
+    # negations and steps are exact, at a quarter of the float traffic; every estimator
+    # converts only its small window.
+    along = np.arange(2 * reach + 1)[:, None] + top[None, :]
+    flat = image.ravel()
+    if columns:
+        prof = flat[along * image.shape[1] + lines[None, :]].astype(np.int16)
+    else:
+        prof = flat[lines[None, :] * image.shape[1] + along].astype(np.int16)
+    # Both sides at once: the falling edge of a profile between levels lo and hi is the
+    # rising edge of the negated profile between -hi and -lo, so lines n.. hold -prof
+    # and every estimator below sees rising edges only (one call per stage, not two).
+    prof2 = np.concatenate([prof, -prof], axis=1)
+    diff2 = np.diff(prof2, axis=0)  # step k sits at k + 0.5
+    base = top.astype(np.float64)
     mid = yc - base  # centre's position in sample units
-    pos = np.arange(diff.shape[1]) + 0.5
-    exp_a = mid - half
-    exp_b = mid + half
-    tol = np.maximum(0.35 * half, 2.5)[:, None]
-    near_a = np.abs(pos[None, :] - exp_a[:, None]) <= tol
-    near_b = np.abs(pos[None, :] - exp_b[:, None]) <= tol
-    pa = np.argmax(np.where(near_a, diff, -np.inf), axis=1)
-    pb = np.argmax(np.where(near_b, -diff, -np.inf), axis=1)
+    tol = np.maximum(0.35 * half, 2.5)
+    # The steepest rising step near each expected edge (lines n.. are the falling side).
+    peak = _argmax_near(diff2, np.concatenate([mid - half, mid + half]), np.tile(tol, 2))
     # Ramp width (px) = contrast / steepest step: motion blur widens it; the moment
     # window grows with it so a blurred edge is still located at its centre.
-    rr = np.arange(len(lines))
-    inner = np.abs(np.arange(prof.shape[1])[None, :] - mid[:, None]) < 0.5 * half[:, None]
-    level_in = (prof * inner).sum(axis=1) / np.maximum(inner.sum(axis=1), 1)
-    outer = np.concatenate([prof[:, :margin_px], prof[:, -margin_px:]], axis=1)
-    level_out = np.median(outer, axis=1)
+    level_in = _inner_mean(prof, mid, 0.5 * half)
+    level_out = _median(np.concatenate([prof[:margin_px], prof[-margin_px:]]))
     contrast = np.maximum(level_in - level_out, 1e-6)
-    width_a = contrast / np.maximum(diff[rr, pa], 1e-6)
-    width_b = contrast / np.maximum(-diff[rr, pb], 1e-6)
-    wa = np.clip(np.ceil(0.5 * width_a + 0.5), window, max_window).astype(np.intp)
-    wb = np.clip(np.ceil(0.5 * width_b + 0.5), window, max_window).astype(np.intp)
-    ca, ka, _ = edge_moment(diff, pa, wa)
-    cb, kb, _ = edge_moment(-diff, pb, wb)
-    sa, sb = width_a, width_b
-    if estimator == "area":
+    ramp = np.tile(contrast, 2) / np.maximum(diff2[peak, np.arange(2 * n)], 1e-6)
+    win = np.clip(np.ceil(0.5 * ramp + 0.5), window, max_window).astype(np.intp)
+    lo2 = hi2 = None
+    if estimator in ("area", "erf"):
         from scipy.ndimage import median_filter
 
-        k = min(9, 2 * (len(lines) // 2) + 1) if len(lines) > 2 else 1
+        k = min(9, 2 * (n // 2) + 1) if n > 2 else 1
         lo = median_filter(level_out, size=k, mode="nearest")
         hi = median_filter(level_in, size=k, mode="nearest")
-        ea = _area_edge(prof, pa, wa, lo, hi, rising=True)
-        eb = _area_edge(prof, pb, wb, lo, hi, rising=False)
-        ca = np.where(np.isfinite(ea), ea, ca)
-        cb = np.where(np.isfinite(eb), eb, cb)
-    if estimator == "erf":
-        from scipy.ndimage import median_filter
-
-        k = min(9, 2 * (len(lines) // 2) + 1) if len(lines) > 2 else 1
-        lo = median_filter(level_out, size=k, mode="nearest")
-        hi = median_filter(level_in, size=k, mode="nearest")
-        ea = _area_edge(prof, pa, wa, lo, hi, rising=True)
-        eb = _area_edge(prof, pb, wb, lo, hi, rising=False)
-        ea = np.where(np.isfinite(ea), ea, ca)
-        eb = np.where(np.isfinite(eb), eb, cb)
-        ca = erf_edge(prof, ea, lo, hi, 0.4 * width_a, rising=True)
-        cb = erf_edge(prof, eb, lo, hi, 0.4 * width_b, rising=False)
-    if estimator == "gauss3":
-        ga, gb = edge_gauss3(diff, pa), edge_gauss3(-diff, pb)
-        ca = np.where(np.isfinite(ga), ga, ca)
-        cb = np.where(np.isfinite(gb), gb, cb)
-    along_a = base + ca
-    along_b = base + cb
-    side_a = np.column_stack([lines.astype(np.float64), along_a])
-    side_b = np.column_stack([lines.astype(np.float64), along_b])
+        lo2, hi2 = np.concatenate([lo, -hi]), np.concatenate([hi, -lo])
+    cen, step, area = _window_edges(prof2, peak, win, lo2, hi2)
+    if lo2 is not None and hi2 is not None:
+        cen = np.where(np.isfinite(area), area, cen)
+        if estimator == "erf":
+            cen = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks=2)
+    elif estimator == "gauss3":
+        g = edge_gauss3(diff2.T, peak)
+        cen = np.where(np.isfinite(g), g, cen)
+    ca, cb = cen[:n], cen[n:]
+    side_a = np.column_stack([lines.astype(np.float64), base + ca])
+    side_b = np.column_stack([lines.astype(np.float64), base + cb])
     if not columns:
         side_a = side_a[:, ::-1]
         side_b = side_b[:, ::-1]
-    contrast = np.minimum(ka, kb)
-    spread = np.maximum(sa, sb)
+    contrast = np.minimum(step[:n], step[n:])
+    spread = np.maximum(ramp[:n], ramp[n:])
     good = np.isfinite(ca) & np.isfinite(cb) & (contrast > 0)
     return StripEdges(side_a[good], side_b[good], contrast[good], spread[good])
 
 
-def _area_edge(
-    prof: NDArray[np.float64],
+def _gather(samples: NDArray[Any], idx: NDArray[np.intp]) -> tuple[NDArray[Any], NDArray[np.bool_]]:
+    """``samples[idx[w, i], i]`` for a (window, lines) index array (clipped to the
+    samples) and where the index was inside them (flat indices: cheaper than 2-D fancy
+    indexing). ``samples`` must be C-contiguous."""
+    m, n = samples.shape
+    valid = (idx >= 0) & (idx < m)
+    return np.ravel(samples)[np.clip(idx, 0, m - 1) * n + np.arange(n)[None, :]], valid
+
+
+def _argmax_near(
+    diff: NDArray[np.int16], centre: NDArray[np.float64], tol: NDArray[np.float64]
+) -> NDArray[np.intp]:
+    """Per line (column of ``diff``), the index k of the largest step ``diff[k]`` (at
+    k + 0.5) within ``tol`` of ``centre`` (the first, on a tie): only that window is
+    read, not the whole line."""
+    m = diff.shape[0]
+    k0 = np.clip(np.ceil(centre - tol - 0.5).astype(np.intp), 0, m - 1)
+    k1 = np.clip(np.floor(centre + tol - 0.5).astype(np.intp), 0, m - 1)
+    span = max(int(np.max(k1 - k0)) + 1, 1) if len(k0) else 1
+    idx = np.arange(span)[:, None] + k0[None, :]
+    vals, _ = _gather(diff, np.minimum(idx, m - 1))
+    vals = np.where(idx <= k1[None, :], vals, np.iinfo(np.int16).min)
+    return np.asarray(k0 + np.argmax(vals, axis=0), dtype=np.intp)
+
+
+def _inner_mean(
+    prof: NDArray[np.int16], mid: NDArray[np.float64], half: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Mean of each line's samples k with ``|k - mid| < half`` (a difference of two
+    cumulative sums; integer sums, exact)."""
+    m, n = prof.shape
+    k0 = np.clip(np.floor(mid - half).astype(np.intp) + 1, 0, m)
+    k1 = np.clip(np.ceil(mid + half).astype(np.intp), 0, m)  # one past the last
+    cs = np.zeros((m + 1, n), dtype=np.int32)
+    np.cumsum(prof, axis=0, out=cs[1:])
+    rr = np.arange(n)
+    return np.asarray((cs[k1, rr] - cs[k0, rr]) / np.maximum(k1 - k0, 1), dtype=np.float64)
+
+
+def _median(values: NDArray[np.int16]) -> NDArray[np.float64]:
+    """Column medians (as ``np.median``: the mean of the two middle values of an even
+    column)."""
+    m = values.shape[0]
+    k = [(m - 1) // 2, m // 2]
+    part = np.partition(values.T, k, axis=1)
+    return np.asarray(0.5 * (part[:, k[0]].astype(np.float64) + part[:, k[1]]))
+
+
+def _window_edges(
+    prof: NDArray[np.int16],
     peak: NDArray[np.intp],
     half: NDArray[np.intp],
-    lo: NDArray[np.float64],
-    hi: NDArray[np.float64],
-    rising: bool,
-) -> NDArray[np.float64]:
-    """Edge position (sample units) of the sharp step with the same area between the
-    plateau levels ``lo`` and ``hi`` over samples peak-half .. peak+half+1 (exact for any
-    blur once the window spans the ramp; less noisy than the moment of the steps)."""
-    _n, m = prof.shape
-    hmax = int(np.max(half))
+    lo: NDArray[np.float64] | None,
+    hi: NDArray[np.float64] | None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Rising edges about the steepest step ``peak`` (step k between samples k and k+1,
+    at k + 0.5) of each line (column) of ``prof``, from one window of samples
+    peak-half .. peak+half+1:
+
+    - the first moment of the positive steps within ``half`` of the peak, and their sum
+      (the edge's contrast), as :func:`vision.sampling.edge_moment`;
+    - with plateau levels ``lo`` and ``hi``: the position of the sharp step with the
+      same area between them (exact for any blur once the window spans the ramp; less
+      noisy than the moment of the steps), NaN where the window leaves the line."""
+    n = prof.shape[1]
+    hmax = int(np.max(half)) if n else 0
     offs = np.arange(-hmax, hmax + 2)
-    idx = peak[:, None] + offs[None, :]
-    inwin = (offs[None, :] >= -half[:, None]) & (offs[None, :] <= half[:, None] + 1)
-    ok = np.all((idx >= 0) & (idx < m) | ~inwin, axis=1)
-    idx = np.clip(idx, 0, m - 1)
-    v = np.take_along_axis(prof, idx, axis=1)
-    frac = np.where(inwin, (v - lo[:, None]) / np.maximum(hi - lo, 1e-6)[:, None], 0.0)
-    total = frac.sum(axis=1)
-    j0 = (peak - half).astype(np.float64)
-    j1 = (peak + half + 1).astype(np.float64)
-    e = j1 + 0.5 - total if rising else j0 - 0.5 + total
-    return np.where(ok & (hi - lo > 1.0), e, np.nan)
+    idx = peak[None, :] + offs[:, None]
+    v, inrange = _gather(prof, idx)
+    # The steps of the window; step o (between samples o and o + 1 about the peak).
+    d = np.diff(v, axis=0)
+    ok_step = inrange[:-1] & inrange[1:] & (np.abs(offs[:-1])[:, None] <= half[None, :])
+    d = np.where(ok_step & (d > 0), d, 0).astype(np.float64)
+    total = d.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centre = (d * (idx[:-1] + 0.5)).sum(axis=0) / total
+    if lo is None or hi is None:
+        return centre, total, np.full(n, np.nan)
+    inwin = (offs[:, None] >= -half[None, :]) & (offs[:, None] <= half[None, :] + 1)
+    ok = np.all(inrange | ~inwin, axis=0)
+    frac = np.where(inwin, (v - lo[None, :]) / np.maximum(hi - lo, 1e-6)[None, :], 0.0)
+    area = (peak + half + 1).astype(np.float64) + 0.5 - frac.sum(axis=0)
+    return centre, total, np.where(ok & (hi - lo > 1.0), area, np.nan)
 
 
 def erf_edge(
-    prof: NDArray[np.float64],
+    prof: NDArray[np.floating] | NDArray[np.integer],
     start: NDArray[np.float64],
     lo: NDArray[np.float64],
     hi: NDArray[np.float64],
     sigma0: NDArray[np.float64],
-    rising: bool,
+    rising: bool = True,
+    blocks: int = 1,
 ) -> NDArray[np.float64]:
     """Least-squares edge position (sample units) of a blurred step
-    ``lo + (hi - lo) Phi((j - c) / s)`` fitted to the samples ``j`` near ``start``.
+    ``lo + (hi - lo) Phi((j - c) / s)`` fitted to the samples ``j`` near ``start``
+    (profiles (lines, samples)).
 
     The step's width ``s`` is fitted per line first, then fixed at its median over the
     lines (one lens, one edge direction) and only ``c`` is refitted: the maximum-
     likelihood position under white noise, which weights each sample by the local slope
-    of the edge instead of equally (the area estimator's noise grows with its window)."""
-    from scipy.special import ndtr
+    of the edge instead of equally (the area estimator's noise grows with its window).
+    ``blocks``: the lines are that many consecutive (near) equal blocks, each a
+    different edge with its own median width."""
+    return _erf_fit(
+        np.asarray(prof).T, start, lo, hi, sigma0, 1.0 if rising else -1.0, blocks=blocks
+    )
 
-    _n, m = prof.shape
-    sign = 1.0 if rising else -1.0
+
+def _erf_fit(
+    prof: NDArray[np.floating] | NDArray[np.integer],
+    start: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    sigma0: NDArray[np.float64],
+    sign: float,
+    blocks: int = 1,
+) -> NDArray[np.float64]:
+    """:func:`erf_edge` on profiles (samples, lines).
+
+    The Gauss-Newton sums are taken with the per-line constants factored out: with
+    ``u = sign (j - c) / s`` and ``g = exp(-u^2 / 2)``, d model / d c = k g and
+    d model / d s = k sign g u, ``k = -sign (hi - lo) / (s sqrt(2 pi))``."""
     amp = np.maximum(hi - lo, 1e-6)
     ok = np.isfinite(start)
     c = np.where(ok, start, 0.0)
     s = np.clip(np.where(np.isfinite(sigma0), sigma0, 0.8), 0.4, 3.0)
     # One window of samples about the start (it is within a sample of the edge).
-    offs = np.arange(-4, 5)
-    idx = np.round(c).astype(np.intp)[:, None] + offs[None, :]
-    valid = (idx >= 0) & (idx < m)
-    v = np.take_along_axis(prof, np.clip(idx, 0, m - 1), axis=1) - lo[:, None]
-    j = idx.astype(np.float64)
+    centre = np.round(c)
+    idx = np.arange(-4, 5)[:, None] + centre.astype(np.intp)[None, :]
+    samples, valid = _gather(np.ascontiguousarray(prof), idx)
+    every = bool(valid.all())
+    # The model is evaluated in single precision (twice the numpy throughput; numpy's
+    # double exp is even scalar code on CPUs without AVX-512), about the window's
+    # centre: the residuals are then good to 1e-5 DN and a step to 1e-7 px, far below
+    # the noise. The positions themselves, and the 2x2 solves, stay double.
+    v = (samples - lo).astype(np.float32)
+    offs = np.arange(-4.0, 5.0, dtype=np.float32)[:, None]
+    amp32 = amp.astype(np.float32)
     root2pi = math.sqrt(2 * math.pi)
     for it in range(4):
-        u = sign * (j - c[:, None]) / s[:, None]
-        phi = np.exp(-0.5 * u * u) / root2pi
-        r = np.where(valid, v - amp[:, None] * ndtr(u), 0.0)
-        jc = np.where(valid, (-sign / s)[:, None] * amp[:, None] * phi, 0.0)  # d model/d c
+        u = (offs - (c - centre).astype(np.float32)) * (sign / s).astype(np.float32)
+        g = np.exp(np.float32(-0.5) * u * u)
+        if not every:
+            g = np.where(valid, g, np.float32(0.0))  # a zero weight drops the sample
+        r = v - amp32 * _ndtr_from_weight(u, g)
+        k = (-sign / root2pi) * amp / s
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            if it < 2:
+                gu = g * u
+                s0, s1, s2 = (_colsum(g * g), _colsum(g * gu), _colsum(gu * gu))
+                t0, t1 = _colsum(g * r), _colsum(gu * r)
+                kd = k * (s0 * s2 - s1 * s1)
+                dc = (s2 * t0 - s1 * t1) / kd
+                ds = sign * (s0 * t1 - s1 * t0) / kd
+            else:
+                dc = _colsum(g * r) / _colsum(g * g) / k
+        c = c + np.where(np.isfinite(dc), np.clip(dc, -1.0, 1.0), 0.0)
         if it < 2:
-            js = jc * sign * u  # d model / d s
-            a11, a12, a22 = (jc * jc).sum(1), (jc * js).sum(1), (js * js).sum(1)
-            b1, b2 = (jc * r).sum(1), (js * r).sum(1)
-            det = a11 * a22 - a12 * a12
-            with np.errstate(divide="ignore", invalid="ignore"):
-                dc = (a22 * b1 - a12 * b2) / det
-                ds = (a11 * b2 - a12 * b1) / det
-            c = c + np.where(np.isfinite(dc), np.clip(dc, -1.0, 1.0), 0.0)
             s = np.clip(s + np.where(np.isfinite(ds), np.clip(ds, -0.5, 0.5), 0.0), 0.3, 4.0)
-            if it == 1 and ok.any():
-                s = np.full_like(s, float(np.median(s[ok])))
-        else:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                dc = (jc * r).sum(1) / (jc * jc).sum(1)
-            c = c + np.where(np.isfinite(dc), np.clip(dc, -1.0, 1.0), 0.0)
+        if it == 1:
+            for blk in np.array_split(np.arange(len(s)), blocks):
+                if ok[blk].any():
+                    s[blk] = median(s[blk][ok[blk]])
     bad = ~ok | (np.abs(c - start) > 2.0) | (hi - lo <= 1.0)
     return np.where(bad, np.nan, c)
+
+
+def _colsum(x: NDArray[np.float32]) -> NDArray[np.float64]:
+    """Column sums of a (window, lines) single-precision array, as doubles."""
+    return np.asarray(x.sum(axis=0), dtype=np.float64)
+
+
+#: Abramowitz & Stegun 7.1.26: erfc(x) = (a1 t + .. + a5 t^5) exp(-x^2), t = 1 / (1 + p x),
+#: x >= 0, absolute error below 1.5e-7.
+_AS_P = 0.3275911 / math.sqrt(2.0)  # for x = |u| / sqrt(2)
+_AS_A = (0.254829592, -0.284496736, 1.421413741, -1.453152027, 1.061405429)
+
+
+def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray[np.float32]:
+    """The normal CDF Phi(u) given ``g = exp(-u^2 / 2)`` (which the fit computes anyway),
+    to 3e-7 in single precision: a few vector multiplies instead of
+    ``scipy.special.ndtr``, a third of the time of a fit step. In a residual that is
+    6e-5 DN on a 200 DN edge, against 2-10 DN of noise."""
+    a1, a2, a3, a4, a5 = (np.float32(a) for a in _AS_A)
+    one, half = np.float32(1.0), np.float32(0.5)
+    t = one / (one + np.float32(_AS_P) * np.abs(u))
+    tail = (half * g) * (t * (a1 + t * (a2 + t * (a3 + t * (a4 + t * a5)))))  # Phi(-|u|)
+    return np.where(u >= 0, one - tail, tail)

@@ -8,12 +8,12 @@ toward the pivot, becomes wider; the clamp is where it does.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.sampling import bilinear
+from vision.sampling import bilinear, median
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -38,6 +38,9 @@ class Rough:
     hub_back: NDArray[np.float64]  # (2,) far end of the hub
     hub_width: float
     tip: NDArray[np.float64]
+    #: (H, 2) centres of the cross-profiles on the hub whose width agrees with the hub's
+    #: (half-maximum crossings, sub-sample): points on its axis.
+    hub: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 def find_strip(
@@ -45,45 +48,72 @@ def find_strip(
     offsets: NDArray[np.float64],
     expect: float,
     near: float | None = None,
+    levels: tuple[float, float] | None = None,
 ) -> Strip | None:
     """The bright run (half-maximum crossings) nearest offset ``expect`` in a profile.
     With ``near``, the maximum is taken within ``near`` of ``expect`` (brighter objects
-    elsewhere in the profile then do not hide a dimmer strip)."""
-    ok = np.isfinite(values)
+    elsewhere in the profile then do not hide a dimmer strip). ``levels``: the profile's
+    (:func:`profile_levels`), when already known (a finite profile only)."""
     n = len(values)
-    if ok.sum() < 0.7 * n:
-        return None
-    v = np.where(ok, values, np.nanmedian(values)) if not ok.all() else values
-    vs = np.sort(v)
-    lo = float(vs[int(0.2 * (n - 1))])
-    hi = float(vs[int(0.98 * (n - 1))])
+    if levels is not None:
+        v = values
+        lo, hi = levels
+    else:
+        ok = np.isfinite(values)
+        if ok.sum() < 0.7 * n:
+            return None
+        v = np.where(ok, values, np.nanmedian(values)) if not ok.all() else values
+        lo, hi = (float(x) for x in profile_levels(v[None, :])[0])
     if near is not None:
-        close = np.abs(offsets - expect) <= near
+        # Only the slice about the window (uniform offsets) is tested, a sample wider
+        # than it either side, with the same test.
+        step0 = float(offsets[1] - offsets[0])
+        i0 = max(int((expect - near - float(offsets[0])) / step0) - 1, 0)
+        i1 = min(int((expect + near - float(offsets[0])) / step0) + 2, n)
+        close = np.abs(offsets[i0:i1] - expect) <= near if i0 < i1 else np.zeros(0, bool)
         if close.any():
-            hi = float(np.max(v[close]))
+            hi = float(v[i0:i1][close].max())
     if hi - lo < 12.0:
         return None
     thr = 0.5 * (lo + hi)
-    above = (v > thr).astype(np.int8)
-    d = np.diff(above)
-    starts = np.flatnonzero(d == 1) + 1  # first sample above
-    ends = np.flatnonzero(d == -1)  # last sample above
-    if starts.size == 0 or ends.size == 0:
+    above = (v > thr).view(np.int8)
+    d = above[1:] - above[:-1]
+    where = d.nonzero()[0]
+    # A profile has a few runs: their ends and centres in plain floats (the same
+    # arithmetic, without a numpy call per step).
+    starts, ends = [], []
+    for i, g in zip(where.tolist(), d[where].tolist(), strict=True):
+        if g == 1:
+            starts.append(i + 1)  # first sample above
+        else:
+            ends.append(i)  # last sample above
+    if not starts or not ends:
         return None
-    ends = ends[ends >= starts[0]]
-    m = min(starts.size, ends.size)
+    ends = [e for e in ends if e >= starts[0]]
+    m = min(len(starts), len(ends))
     if m == 0:
         return None
-    s0, s1 = starts[:m], ends[:m]
-    step = offsets[1] - offsets[0]
-    f0 = (thr - v[s0 - 1]) / (v[s0] - v[s0 - 1])
-    f1 = (v[s1] - thr) / (v[s1] - v[s1 + 1])
-    a = offsets[s0 - 1] + f0 * step
-    b = offsets[s1] + f1 * step
-    c = 0.5 * (a + b)
-    k = int(np.argmin(np.abs(c - expect)))
-    peak = float(np.max(v[s0[k] : s1[k] + 1]))
-    return Strip(float(c[k]), float(b[k] - a[k]), peak - lo)
+    step = float(offsets[1] - offsets[0])
+    best, best_k = None, 0
+    for k in range(m):
+        s0, s1 = starts[k], ends[k]
+        v0, v1, w0, w1 = float(v[s0 - 1]), float(v[s0]), float(v[s1]), float(v[s1 + 1])
+        a = float(offsets[s0 - 1]) + (thr - v0) / (v1 - v0) * step
+        b = float(offsets[s1]) + (w0 - thr) / (w0 - w1) * step
+        c = 0.5 * (a + b)
+        if best is None or abs(c - expect) < abs(best[0] - expect):
+            best, best_k = (c, b - a), k
+    assert best is not None
+    peak = float(v[starts[best_k] : ends[best_k] + 1].max())
+    return Strip(best[0], best[1], peak - lo)
+
+
+def profile_levels(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(K, 2) background and bright level of each finite profile (K, M): its 20th and
+    98th percentile samples (two order statistics; no full sort)."""
+    n = values.shape[1]
+    k = [int(0.2 * (n - 1)), int(0.98 * (n - 1))]
+    return np.asarray(np.partition(values, k, axis=1)[:, k], dtype=np.float64)
 
 
 def profile(
@@ -99,36 +129,71 @@ def profile(
     return bilinear(image, to_px(pts)), offs
 
 
+@dataclass(frozen=True, eq=False)
+class SearchCircles:
+    """The two circles about the pivot that :func:`locate` searches for the beam, as raw
+    pixel positions: they depend on the camera placement only, so a measurer maps them
+    once (:func:`search_circles`) instead of every frame."""
+
+    step: float  # m between samples
+    radii: tuple[float, float]  # m
+    phi: tuple[NDArray[np.float64], NDArray[np.float64]]  # sample angles, rad
+    px: tuple[NDArray[np.float64], NDArray[np.float64]]  # (n, 2) raw pixels
+
+
+def search_circles(
+    to_px: ToPx, beam_length: float, beam_width: float, px_m: float
+) -> SearchCircles:
+    """The search circles of a camera placement (see :class:`SearchCircles`)."""
+    radii = (0.25 * beam_length, 0.45 * beam_length)
+    step = max(0.8 * px_m, beam_width / 16)
+    phis, pxs = [], []
+    for radius in radii:
+        n = int(np.ceil(2 * np.pi * radius / step))
+        phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
+        phis.append(phi)
+        pxs.append(to_px(radius * np.column_stack([np.cos(phi), np.sin(phi)])))
+    return SearchCircles(step, (radii[0], radii[1]), (phis[0], phis[1]), (pxs[0], pxs[1]))
+
+
 def _circle_candidates(
-    image: NDArray[np.uint8], to_px: ToPx, radius: float, width: float, step: float
+    image: NDArray[np.uint8],
+    phi: NDArray[np.float64],
+    px: NDArray[np.float64],
+    width: float,
+    step: float,
 ) -> list[tuple[float, float]]:
-    """(angle, contrast) of strips of about ``width`` crossing a circle about the pivot."""
-    n = int(np.ceil(2 * np.pi * radius / step))
-    phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
-    pts = radius * np.column_stack([np.cos(phi), np.sin(phi)])
-    v = bilinear(image, to_px(pts))
+    """(angle, contrast) of strips of about ``width`` crossing a circle about the pivot,
+    sampled at angles ``phi`` (raw pixels ``px``)."""
+    n = len(phi)
+    v = bilinear(image, px)
     ok = np.isfinite(v)
     if ok.sum() < 10:
         return []
-    vv = np.where(ok, v, np.nanmedian(v))
+    vv = v if ok.all() else np.where(ok, v, np.nanmedian(v))
     # Top-hat: brightness above the local floor over 3 widths.
     k = max(3, round(3 * width / step))
-    from scipy.ndimage import grey_opening, uniform_filter1d
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
     sm = uniform_filter1d(vv, max(1, round(0.2 * width / step)), mode="wrap")
-    floor = grey_opening(sm, size=k, mode="wrap")
+    # Grey opening (erosion, then dilation with the flat element mirrored: origin -1 for
+    # an even size), as scipy's grey_opening computes it, by the 1-D filters.
+    floor = maximum_filter1d(
+        minimum_filter1d(sm, k, mode="wrap"), k, mode="wrap", origin=-1 if k % 2 == 0 else 0
+    )
     top = sm - floor
-    noise = float(np.median(np.abs(np.diff(vv)))) + 1.0
+    noise = median(np.abs(np.diff(vv))) + 1.0
     out = []
     thr = max(10.0, 5 * noise)
     peaks = np.flatnonzero((top > thr) & (top >= np.roll(top, 1)) & (top > np.roll(top, -1)) & ok)
-    for p in peaks:
-        half = top[p] / 2
+    tl = top.tolist()  # the half-width walks index single samples
+    for p in peaks.tolist():
+        half = tl[p] / 2
         i0 = p
-        while top[i0 % n] > half and p - i0 < n // 4:
+        while tl[i0 % n] > half and p - i0 < n // 4:
             i0 -= 1
         i1 = p
-        while top[i1 % n] > half and i1 - p < n // 4:
+        while tl[i1 % n] > half and i1 - p < n // 4:
             i1 += 1
         wid = (i1 - i0 - 1) * step
         if 0.55 * width <= wid <= 1.7 * width:
@@ -137,13 +202,21 @@ def _circle_candidates(
 
 
 def locate(
-    image: NDArray[np.uint8], to_px: ToPx, beam_length: float, beam_width: float, px_m: float
+    image: NDArray[np.uint8],
+    to_px: ToPx,
+    beam_length: float,
+    beam_width: float,
+    px_m: float,
+    circles: SearchCircles | None = None,
 ) -> Rough:
-    """Find the beam around the pivot and follow it to the tip and back over the hub."""
-    r1, r2 = 0.25 * beam_length, 0.45 * beam_length
-    step = max(0.8 * px_m, beam_width / 16)
-    c1 = _circle_candidates(image, to_px, r1, beam_width, step)
-    c2 = _circle_candidates(image, to_px, r2, beam_width, step)
+    """Find the beam around the pivot and follow it to the tip and back over the hub.
+    ``circles``: :func:`search_circles` of this placement, when already mapped."""
+    if circles is None:
+        circles = search_circles(to_px, beam_length, beam_width, px_m)
+    r1, r2 = circles.radii
+    step = circles.step
+    c1 = _circle_candidates(image, circles.phi[0], circles.px[0], beam_width, step)
+    c2 = _circle_candidates(image, circles.phi[1], circles.px[1], beam_width, step)
     best = None
     for a1, k1 in c1:
         for a2, k2 in c2:
@@ -170,7 +243,7 @@ def locate(
     hub_pts = pts_in[k0:]
     hub_w = widths_in[k0:]
     # The hub continues while the width stays near its median.
-    med = float(np.median(hub_w))
+    med = median(hub_w)
     keep = np.abs(hub_w - med) < 0.25 * med
     # The hub ends at the first two widths in a row that disagree (one noisy width is
     # not the end).
@@ -184,7 +257,7 @@ def locate(
     beam_in = pts_in[:k0][::-1]
     beam = np.vstack([beam_in, p1[None, :], outward[0]])
     tip = _strip_end(image, to_px, beam, beam_width, px_m)
-    return Rough(beam, clamp, hub_back, med, tip)
+    return Rough(beam, clamp, hub_back, med, tip, hub_pts[:last][keep[:last]])
 
 
 def _strip_end(
@@ -229,21 +302,32 @@ def _follow(
     ts = np.arange(step, max_len + step / 2, step)
     n = np.array([-direction[1], direction[0]])
     offs = np.arange(-half_m, half_m + 0.375 * px_m, 0.75 * px_m)
-    pts = (
-        start[None, None, :]
-        + ts[:, None, None] * direction[None, None, :]
-        + offs[None, :, None] * n[None, None, :]
-    )
+    pts = np.empty((len(ts), len(offs), 2))
+    for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
+        pts[:, :, c] = (start[c] + ts[:, None] * direction[c]) + offs[None, :] * n[c]
     vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
-    out_pts, widths = [], []
+    # The levels of every finite profile in one call (the search itself depends on where
+    # the strip was in the previous profile).
+    finite = np.asarray(np.isfinite(vals).all(axis=1), dtype=bool)
+    levels = np.full((len(ts), 2), np.nan)
+    if finite.any():
+        levels[finite] = profile_levels(vals[finite])
+    known = [
+        (lo, hi) if ok else None
+        for (lo, hi), ok in zip(levels.tolist(), finite.tolist(), strict=True)
+    ]
+    centres, widths = [], []
     expect, prev_w = 0.0, width
     for k in range(len(ts)):
-        s = find_strip(vals[k], offs, expect, near=0.6 * max(prev_w, width))
+        lv = known[k]
+        s = find_strip(vals[k], offs, expect, near=0.6 * max(prev_w, width), levels=lv)
         if s is None or s.width < 0.5 * width or abs(s.centre - expect) > 0.7 * max(prev_w, width):
             break
-        out_pts.append(start + ts[k] * direction + s.centre * n)
+        centres.append(s.centre)
         widths.append(s.width)
         expect, prev_w = s.centre, s.width
-    if not out_pts:
+    if not centres:
         return np.zeros((0, 2)), np.zeros(0)
-    return np.array(out_pts), np.array(widths)
+    cs = np.array(centres)
+    out = (start[None, :] + ts[: len(cs), None] * direction[None, :]) + cs[:, None] * n[None, :]
+    return out, np.array(widths)

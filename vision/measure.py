@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.calibration import Calibration
-from vision.camera import distort_points_px, undistort_points_px
+from vision.camera import Lens
 from vision.centreline import (
     CentreLine,
     arc_length,
@@ -35,8 +35,8 @@ from vision.centreline import (
 )
 from vision.edges import strip_edges
 from vision.homography import apply_homography
-from vision.locate import FrameFailure, Rough, locate
-from vision.sampling import bilinear, edge_moment
+from vision.locate import FrameFailure, Rough, locate, search_circles
+from vision.sampling import bilinear, median
 
 log = logging.getLogger(__name__)
 
@@ -147,23 +147,32 @@ class Measurer:
         self.max_tip_std_m = float(max_tip_std_m)
         self._h = calibration.fit.matrix
         self._h_inv = np.linalg.inv(self._h)
-        self._k = calibration.camera_matrix
-        self._d = calibration.distortion
+        self._lens = Lens(calibration.camera_matrix, calibration.distortion)
         # Plane size of a pixel about the pivot (search step sizes are set from it).
         pivot_px = self.to_px(np.zeros((1, 2)))[0]
         nb = self.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
         self.px_m = float(np.mean(np.linalg.norm(nb - 0.0, axis=1)))
         if not math.isfinite(self.px_m) or self.px_m <= 0:
             raise ValueError("calibration: the pivot does not map into the image plane")
+        # The search circles for the beam are fixed in the plane: mapped once.
+        self._circles = (
+            search_circles(
+                self.to_px, calibration.beam_length_m, calibration.beam_width_m, self.px_m
+            )
+            if method == "default"
+            else None
+        )
 
     # -- mappings ---------------------------------------------------------------------
     def to_px(self, points_m: NDArray[np.float64]) -> NDArray[np.float64]:
         """Plane points (N, 2) m -> raw pixels (N, 2)."""
-        return distort_points_px(apply_homography(self._h_inv, points_m), self._k, self._d)
+        ideal = apply_homography(self._h_inv, points_m)
+        return ideal if self._lens.identity else self._lens.distort(ideal)
 
     def to_plane(self, points_px: NDArray[np.float64]) -> NDArray[np.float64]:
         """Raw pixels (N, 2) -> plane points (N, 2) m."""
-        return apply_homography(self._h, undistort_points_px(points_px, self._k, self._d))
+        ideal = points_px if self._lens.identity else self._lens.undistort(points_px)
+        return apply_homography(self._h, ideal)
 
     # -- entry point --------------------------------------------------------------------
     def measure(self, image_gray: NDArray[np.uint8]) -> FrameMeasurement:
@@ -200,16 +209,13 @@ class Measurer:
     def _measure_default(self, image: NDArray[np.uint8]) -> FrameMeasurement:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
-        rough = locate(image, self.to_px, length, w_beam, self.px_m)
-        # The hub's axis: first between the rough ends (kept well clear of them), then
-        # again over its whole length once both end faces are found (the direction's
-        # noise falls as length^-1.5).
-        margin = min(
-            0.5 * rough.hub_width, 0.3 * float(np.linalg.norm(rough.clamp - rough.hub_back))
-        )
-        e, n, axis_b, hub_w, sd_hub = self._hub_axis(
-            image, rough.hub_back, rough.clamp, rough.hub_width, margin, estimator="area"
-        )
+        rough = locate(image, self.to_px, length, w_beam, self.px_m, self._circles)
+        # The hub's axis: first through the rough centres of its cross-profiles (enough
+        # to place the searches for its end faces, whose lines lie symmetrically about
+        # it), then fitted to its two long edges over its whole length once both end
+        # faces are found (the direction's noise falls as length^-1.5).
+        e, n, axis_b = _rough_axis(rough)
+        hub_w = rough.hub_width
         # Clamp: the hub's end face, on its shoulders either side of the beam.
         origin0 = rough.clamp - ((rough.clamp @ n) - axis_b) * n
         a_clamp = self._end_face(image, origin0, e, n, hub_w, w_beam)
@@ -290,22 +296,21 @@ class Measurer:
         half_width_m: float,
         estimator: str | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        px = self.to_px(line_m)
         # Half width in pixels across the strip, point by point (perspective foreshortens
         # across and along differently).
         t = np.gradient(line_m, axis=0)
-        t /= np.linalg.norm(t, axis=1, keepdims=True)
+        t /= np.hypot(t[:, 0], t[:, 1])[:, None]
         nrm = np.column_stack([-t[:, 1], t[:, 0]])
-        across = np.linalg.norm(self.to_px(line_m + half_width_m * nrm) - px, axis=1)
+        both = self.to_px(np.vstack([line_m, line_m + half_width_m * nrm]))
+        px, off = both[: len(line_m)], both[len(line_m) :]
+        across = np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
         edges = strip_edges(image, px, across, estimator=estimator or self.edge_estimator)
         if len(edges.side_a) < 5:
             raise FrameFailure("too few edge points (strip not visible)")
-        keep = edges.contrast > 0.35 * np.median(edges.contrast)
-        return (
-            self.to_plane(edges.side_a[keep]),
-            self.to_plane(edges.side_b[keep]),
-            edges.spread[keep],
-        )
+        keep = edges.contrast > 0.35 * median(edges.contrast)
+        k = int(keep.sum())
+        plane = self.to_plane(np.vstack([edges.side_a[keep], edges.side_b[keep]]))
+        return plane[:k], plane[k:], edges.spread[keep]
 
     def _hub_axis(
         self,
@@ -336,24 +341,30 @@ class Measurer:
         pa, pb = pa[ka], pb[kb]
         if len(pa) < 5 or len(pb) < 5:
             raise FrameFailure("hub edges not visible")
+        # Two robust passes: the common direction of both edges (the major axis of their
+        # scatter about their own centroids, in closed form), then drop points beyond
+        # four robust sigmas across it. x and y apart: (N, 2) arrays are slow to operate on.
+        xa, ya, xb, yb = pa[:, 0], pa[:, 1], pb[:, 0], pb[:, 1]
         for _ in range(2):
-            ca, cb = pa.mean(axis=0), pb.mean(axis=0)
-            stack = np.vstack([pa - ca, pb - cb])
-            _, _, vt = np.linalg.svd(stack, full_matrices=False)
-            e2 = vt[0] if vt[0] @ e > 0 else -vt[0]
-            n2 = np.array([-e2[1], e2[0]])
-            res = np.concatenate([(pa - ca) @ n2, (pb - cb) @ n2])
-            sig = 1.4826 * np.median(np.abs(res)) + 1e-9
-            ka = np.abs((pa - ca) @ n2) < 4 * sig
-            kb = np.abs((pb - cb) @ n2) < 4 * sig
+            dxa, dya, dxb, dyb = xa - xa.mean(), ya - ya.mean(), xb - xb.mean(), yb - yb.mean()
+            sxx = float(dxa @ dxa + dxb @ dxb)
+            syy = float(dya @ dya + dyb @ dyb)
+            sxy = float(dxa @ dya + dxb @ dyb)
+            th = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+            e2 = np.array([math.cos(th), math.sin(th)])
+            e2 = e2 if e2 @ e > 0 else -e2
+            ra, rb = dya * e2[0] - dxa * e2[1], dyb * e2[0] - dxb * e2[1]
+            sig = 1.4826 * median(np.abs(np.concatenate([ra, rb]))) + 1e-9
+            ka, kb = np.abs(ra) < 4 * sig, np.abs(rb) < 4 * sig
             if ka.sum() < 3 or kb.sum() < 3:
                 raise FrameFailure("hub edges not straight")
-            pa, pb = pa[ka], pb[kb]
+            xa, ya, xb, yb = xa[ka], ya[ka], xb[kb], yb[kb]
             e = e2
         n = np.array([-e[1], e[0]])
-        ba, bb = float(pa.mean(axis=0) @ n), float(pb.mean(axis=0) @ n)
+        pa, pb = np.column_stack([xa, ya]), np.column_stack([xb, yb])
+        ca, cb = np.array([xa.mean(), ya.mean()]), np.array([xb.mean(), yb.mean()])
+        ba, bb = float(ca @ n), float(cb @ n)
         # Direction uncertainty of the common-direction fit: residual / spread along it.
-        ca, cb = pa.mean(axis=0), pb.mean(axis=0)
         res = np.concatenate([(pa - ca) @ n, (pb - cb) @ n])
         spread = float(np.sum(((pa - ca) @ e) ** 2) + np.sum(((pb - cb) @ e) ** 2))
         dof = max(len(res) - 3, 1)
@@ -404,22 +415,18 @@ class Measurer:
         """Bright-to-dark edge along ``e`` near ``guess`` on lines offset by ``lateral``."""
         step = 0.25 * self.px_m
         t = np.arange(guess - reach, guess + reach, step)
-        pts = (
-            origin[None, None, :]
-            + t[None, :, None] * e[None, None, :]
-            + lateral[:, None, None] * n[None, None, :]
-        )
+        pts = np.empty((len(lateral), len(t), 2))
+        for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
+            pts[:, :, c] = (origin[c] + t[None, :] * e[c]) + lateral[:, None] * n[c]
         v = bilinear(image, self.to_px(pts.reshape(-1, 2))).reshape(len(lateral), len(t))
         if not np.all(np.isfinite(v)):
             raise FrameFailure("clamp or tip outside the image")
         prof = v.mean(axis=0)
-        diff = -np.diff(prof)[None, :]
-        peak = np.array([int(np.argmax(diff[0]))])
-        half = round(3.0 / 0.25)
-        c, k, _ = edge_moment(diff, peak, half)
-        if not np.isfinite(c[0]) or k[0] < 8.0:
+        diff = -np.diff(prof)
+        centre, total = _step_moment(diff, int(np.argmax(diff)), round(3.0 / 0.25))
+        if not math.isfinite(centre) or total < 8.0:
             raise FrameFailure("no clear end edge (clamp or tip)")
-        return float(t[0] + c[0] * step)
+        return float(t[0] + centre * step)
 
     def _beam_edges(
         self,
@@ -450,9 +457,9 @@ class Measurer:
         ha = np.column_stack([(pa - clamp) @ e, (pa - clamp) @ n])
         hb = np.column_stack([(pb - clamp) @ e, (pb - clamp) @ n])
         # Name the sides by lateral sign: left (b > centre) and right.
-        swap = np.median(ha[:, 1] - hb[:, 1]) < 0
+        swap = median(ha[:, 1] - hb[:, 1]) < 0
         left, right = (hb, ha) if swap else (ha, hb)
-        return left, right, float(np.median(spread))
+        return left, right, median(spread)
 
     def _tip(
         self,
@@ -477,6 +484,31 @@ class Measurer:
         a_tip = a_ref + dist * t[0]
         b_tip = b_ref + dist * t[1]
         return float(a_tip), float(b_tip)
+
+
+def _step_moment(diff: NDArray[np.float64], peak: int, half: int) -> tuple[float, float]:
+    """First moment (position, step k at k + 0.5) and sum of the positive steps within
+    ``half`` of ``peak`` in one profile's steps: :func:`vision.sampling.edge_moment` for
+    a single line, without its batch machinery."""
+    lo, hi = max(peak - half, 0), min(peak + half, len(diff) - 1)
+    d = diff[lo : hi + 1]
+    d = np.where(d > 0, d, 0.0)
+    total = float(d.sum())
+    if total <= 0.0:
+        return math.nan, total
+    return float((d * (np.arange(lo, hi + 1) + 0.5)).sum()) / total, total
+
+
+def _rough_axis(rough: Rough) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Unit direction (back to clamp), normal and offset along the normal of the line
+    through the hub's rough profile centres and the rough clamp (least squares)."""
+    hub = rough.hub if len(rough.hub) else rough.hub_back[None, :]
+    pts = np.vstack([hub, rough.clamp[None, :]])
+    c = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
+    e = vt[0] if vt[0] @ (rough.clamp - rough.hub_back) > 0 else -vt[0]
+    n = np.array([-e[1], e[0]])
+    return e, n, float(c @ n)
 
 
 def _along(p: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64]) -> NDArray:

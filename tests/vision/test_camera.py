@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from vision.camera import (
+    Lens,
     camera_matrix,
     check_intrinsics,
     distort_points_px,
@@ -38,6 +39,30 @@ def test_radial_distortion_moves_points_as_the_model_says() -> None:
     ideal_px = x * 2100 + K[:2, 2]
     got = distort_points_px(ideal_px, K, np.array([k1, 0, 0, 0, 0.0]))
     np.testing.assert_allclose(got, x * (1 + k1 * r2) * 2100 + K[:2, 2], atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "dist",
+    [
+        [-0.1, 0.0, 0.0, 0.0, 0.0],
+        [0.1, -0.05, 0.001, -0.0005, 0.01],
+        [0.1, -0.05, 0.0, 0.0, 0.01, 0.02, -0.01, 0.005],
+        [0.1, -0.05, 0.001, -0.0005, 0.01, 0.02, -0.01, 0.005, 0.001, -0.002, 0.003, 0.0005],
+        [0.05, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01, -0.02],  # tilt
+    ],
+)
+def test_the_measurers_lens_is_opencvs_model(dist: list[float]) -> None:
+    d = np.array(dist)
+    rng = np.random.default_rng(1)
+    # The image and a margin around it (points a measurement maps may lie outside).
+    pts = rng.uniform([-200, -200], [2247, 1735], size=(3000, 2))
+    lens = Lens(K, d)
+    np.testing.assert_allclose(lens.distort(pts), distort_points_px(pts, K, d), atol=1e-9)
+    np.testing.assert_allclose(lens.undistort(pts), undistort_points_px(pts, K, d), atol=1e-9)
+    skewed = K.copy()
+    skewed[0, 1] = 3.0  # OpenCV's own treatment of skew: handed to it
+    np.testing.assert_array_equal(Lens(skewed, d).distort(pts), distort_points_px(pts, skewed, d))
+    np.testing.assert_array_equal(Lens(K, np.zeros(5)).undistort(pts), pts)
 
 
 def test_no_distortion_is_the_identity() -> None:

@@ -1,0 +1,83 @@
+"""Sub-pixel strip edges and the sampling helpers, on synthetic profiles of known edges."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import ndtr
+
+from vision.edges import _ndtr_from_weight, erf_edge, strip_edges
+from vision.sampling import bilinear, median
+
+
+def _strip_image(
+    shape: tuple[int, int], y0: float, slope: float, half: float, sigma: float
+) -> np.ndarray:
+    """A bright strip (40 -> 210 DN) about the line y = y0 + slope x, perpendicular half
+    width ``half`` px, edges blurred by a Gaussian of ``sigma`` px, sampled at pixel
+    centres (the erf model exactly)."""
+    h, w = shape
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    d = (y - y0 - slope * x) / np.hypot(1.0, slope)
+    v = 40.0 + 170.0 * (ndtr((d + half) / sigma) - ndtr((d - half) / sigma))
+    return np.round(v).clip(0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("transpose", [False, True])
+def test_strip_edges_find_both_sides_of_a_blurred_strip(transpose: bool) -> None:
+    y0, slope, half, sigma = 60.3, 0.12, 9.4, 0.9
+    img = _strip_image((140, 400), y0, slope, half, sigma)
+    xs = np.linspace(20.0, 380.0, 40)
+    line = np.column_stack([xs, y0 + slope * xs])
+    if transpose:  # the same strip along rows: scan lines are then image rows
+        img, line = np.ascontiguousarray(img.T), line[:, ::-1]
+    edges = strip_edges(img, line, half, estimator="erf")
+    a, b = edges.side_a, edges.side_b
+    if transpose:  # back to (x, y) of the untransposed strip
+        a, b = a[:, ::-1], b[:, ::-1]
+    assert len(a) > 300
+    across = half * np.hypot(1.0, slope)  # the edges along a column
+    # Quantization to 8 bits is the only error left (noise-free): a few thousandths.
+    np.testing.assert_allclose(a[:, 1], y0 + slope * a[:, 0] - across, atol=0.02)
+    np.testing.assert_allclose(b[:, 1], y0 + slope * b[:, 0] + across, atol=0.02)
+    np.testing.assert_allclose(edges.contrast, 170.0, atol=4.0)
+
+
+def test_a_falling_edge_is_the_rising_edge_of_the_negated_profile() -> None:
+    # strip_edges fits both sides as rising edges this way; erf_edge's own falling mode
+    # must agree.
+    rng = np.random.default_rng(3)
+    j = np.arange(30.0)
+    c = rng.uniform(12.0, 17.0, 50)
+    prof = 30.0 + 150.0 * ndtr(-(j[None, :] - c[:, None]) / 0.8) + rng.normal(0, 2, (50, 30))
+    lo, hi = np.full(50, 30.0), np.full(50, 180.0)
+    start = np.round(c) + 0.2
+    falling = erf_edge(prof, start, lo, hi, np.full(50, 0.8), rising=False)
+    rising = erf_edge(-prof, start, -hi, -lo, np.full(50, 0.8), rising=True)
+    np.testing.assert_allclose(falling, rising, atol=1e-9)
+    assert np.sqrt(np.mean((falling - c) ** 2)) < 0.05
+
+
+def test_normal_cdf_from_the_weight_is_accurate() -> None:
+    u = np.linspace(-12.0, 12.0, 200001).astype(np.float32)
+    g = np.exp(np.float32(-0.5) * u * u)
+    err = np.abs(_ndtr_from_weight(u, g).astype(np.float64) - ndtr(u.astype(np.float64)))
+    assert err.max() < 3.5e-7
+
+
+def test_median_is_numpys() -> None:
+    rng = np.random.default_rng(0)
+    for n in (1, 2, 3, 10, 11, 500):
+        x = rng.normal(size=n)
+        assert median(x) == float(np.median(x))
+    assert np.isnan(median(np.array([1.0, np.nan, 2.0])))
+    assert np.isnan(median(np.zeros(0)))
+
+
+def test_bilinear_interpolates_and_is_nan_off_the_image() -> None:
+    img = np.arange(20, dtype=np.uint8).reshape(4, 5) * 10
+    xy = np.array([[1.25, 2.5], [0.0, 0.0], [4.0, 3.0], [-0.1, 1.0], [1.0, np.nan], [np.inf, 1]])
+    v = bilinear(img, xy)
+    # value = 10 * (5 y + x) for this ramp
+    np.testing.assert_allclose(v[:3], [10 * (5 * 2.5 + 1.25), 0.0, 190.0])
+    assert np.all(np.isnan(v[3:]))

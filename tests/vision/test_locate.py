@@ -1,0 +1,45 @@
+"""Rough location of the beam and hub on rendered frames."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vision import Measurer
+from vision.locate import find_strip, locate, profile_levels, search_circles
+from vision.render import render_frame
+
+
+def test_premapped_search_circles_change_nothing_and_hub_centres_lie_on_its_axis(
+    nominal_spec, vt
+) -> None:
+    frame = render_frame(nominal_spec, [vt.bent(math.radians(300), 0.05)])
+    m = Measurer(vt.truth_calibration(frame.truth))
+    args = (frame.image, m.to_px, vt.L_M, vt.W_M, m.px_m)
+    a = locate(*args)
+    b = locate(*args, circles=search_circles(m.to_px, vt.L_M, vt.W_M, m.px_m))
+    for name in ("beam", "clamp", "hub_back", "hub_width", "tip", "hub"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    # The hub's profile centres (the first axis estimate) lie on its axis, which passes
+    # through the pivot (the plane origin).
+    th = frame.truth.hub_angle_rad
+    assert len(a.hub) >= 2
+    across = a.hub[:, 0] * math.sin(th) - a.hub[:, 1] * math.cos(th)
+    assert np.max(np.abs(across)) < 0.5e-3
+
+
+def test_find_strip_with_precomputed_levels_is_the_same() -> None:
+    rng = np.random.default_rng(2)
+    offs = np.arange(-100.0, 100.5, 0.75)
+    for k in range(20):
+        centre, width = rng.uniform(-40, 40), rng.uniform(15, 25)
+        v = 40 + 150 * (np.abs(offs - centre) < width / 2) + rng.normal(0, 3, len(offs))
+        v += 120 * (np.abs(offs - centre - 50) < 4)  # a brighter bar beside it
+        expect = centre + rng.uniform(-3, 3)
+        lo, hi = profile_levels(v[None, :])[0]
+        a = find_strip(v, offs, expect, near=12.0)
+        b = find_strip(v, offs, expect, near=12.0, levels=(float(lo), float(hi)))
+        assert a is not None and b is not None, k
+        assert (a.centre, a.width, a.contrast) == (b.centre, b.width, b.contrast), k
+        assert abs(a.centre - centre) < 0.5 and abs(a.width - width) < 1.0, k
