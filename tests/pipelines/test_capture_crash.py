@@ -47,6 +47,10 @@ daq = FakeStrainDaq(rig.gauges, rig.potentiometer, rig.daq,
     strain_noise=2e-6, pot_noise_v=5e-4, seed=11, realtime=realtime)
 cam = FakeCamera(render_fn=lambda t, e: jpeg, width_px=160, height_px=120, frame_rate_hz=15.0,
                  realtime=realtime)
+# Ctrl-C as at a terminal, however the suite was launched: a background job inherits
+# SIGINT ignored, and Python then never raises KeyboardInterrupt (seen in CI runs started
+# with '&': the interrupted capture ran on for its full 30 s)
+signal.signal(signal.SIGINT, signal.default_int_handler)
 print("capturing", flush=True)
 try:
     capture_run(rig, daq, cam, out, float(duration), realtime=realtime)
