@@ -378,6 +378,13 @@ class AncfSystem:
         self._keep = (rows >= first) & (cols >= first)
         self._target = ((rows - first) * self.nf + (cols - first))[self._keep]
         self._scatter: dict[int, NDArray[np.intp]] = {}
+        # one-hot imaginary perturbations for the complex-step derivatives: component k of
+        # gh in column k, of dgh (with damping) in column 4 + k
+        npert = 8 if a1 != 0.0 else 4
+        self._perturbation = np.zeros((2, 4, npert), dtype=complex)
+        self._perturbation[0, :, :4] = 1j * _CS_STEP * np.eye(4)
+        if npert == 8:
+            self._perturbation[1, :, 4:] = 1j * _CS_STEP * np.eye(4)
         self._stiffness: dict[tuple[int, ...], tuple[FloatArray, FloatArray]] = {}
 
     def full(self, d: FloatArray) -> FloatArray:
@@ -476,11 +483,7 @@ class AncfSystem:
         of the energy (the Kelvin-Voigt term's dependence on the state) included; their
         real part is the force itself (the perturbation is purely imaginary)."""
         npert = 8 if self.a1 != 0.0 else 4
-        # one-hot imaginary perturbations: component k of gh in column k, of dgh in 4 + k
-        pert = np.zeros((2, 4, npert), dtype=complex)
-        pert[0, :, :4] = 1j * _CS_STEP * np.eye(4)
-        if npert == 8:
-            pert[1, :, 4:] = 1j * _CS_STEP * np.eye(4)
+        pert = self._perturbation
         extra = (None,) * (gh.ndim - 1)
         ghc = gh[..., None] + pert[0][(slice(None), *extra)]
         dghc = dgh[..., None] + pert[1][(slice(None), *extra)]
