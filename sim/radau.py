@@ -194,6 +194,7 @@ def radau5(
     t = float(t_out[0])
     t_end = float(t_out[-1])
     eye = np.eye(n)
+    eye_3n = np.eye(3 * n) if full else eye
     newton_tol = max(10 * np.finfo(float).eps / rtol, min(0.03, rtol**0.5))
     span = t_end - t
     h = first_step_s if first_step_s is not None else min(1e-3, 0.01 * (t_out[1] - t_out[0]))
@@ -241,7 +242,7 @@ def radau5(
             else:
                 assert rhs_jac_stages is not None
                 converged, n_iter, z, js, f_stages = _newton_full(
-                    rhs_stages, rhs_jac_stages, t, y, h, z, scale, newton_tol, stats
+                    rhs_stages, rhs_jac_stages, t, y, h, z, scale, newton_tol, stats, eye_3n
                 )
                 # the error filter (I - h/mu J)^-1 with stage 1's Jacobian (at t + 0.16 h)
                 lu_r = _lu(MU_REAL / h * eye - js[0])
@@ -359,6 +360,7 @@ def _newton_full(
     scale: FloatArray,
     tol: float,
     stats: RadauStats,
+    eye: FloatArray,
 ) -> tuple[bool, int, FloatArray, FloatArray, FloatArray]:
     """Newton on ``Z - h (A x I) F(y + Z) = 0`` (3n unknowns) with each stage's own
     Jacobian, evaluated at the predicted stages and kept while the iteration contracts
@@ -372,7 +374,6 @@ def _newton_full(
     n = y.size
     ts = t + h * C
     z = z0.copy()
-    eye = np.eye(3 * n)
     dz_norm_old: float | None = None
     lu: tuple[FloatArray, NDArray[np.int32]] | None = None
     jac_k = 0  # the iteration whose iterate the Jacobians were evaluated at
