@@ -181,7 +181,7 @@ class Measurer:
             raise TypeError(f"image_gray must be a numpy array, got {type(image_gray).__name__}")
         if image_gray.ndim != 2 or image_gray.dtype != np.uint8 or min(image_gray.shape) < 16:
             return self._fail(f"not a uint8 gray [row, col] image (shape {image_gray.shape})")
-        if float(image_gray[::8, ::8].std()) < 2.0:
+        if float(image_gray[::16, ::16].std()) < 2.0:
             return self._fail("blank frame (no contrast)")
         try:
             if self.method == "paper":
@@ -221,12 +221,17 @@ class Measurer:
         a_clamp = self._end_face(image, origin0, e, n, hub_w, w_beam)
         clamp = origin0 + a_clamp * e
         back_a = self._back_face(image, clamp, e, n, hub_w, float((rough.hub_back - clamp) @ e))
+        back = clamp + back_a * e
+        # One scan across the hub and the beam (a strip scan's fixed cost is about the
+        # cost of its lines: one call, not two). The hub's axis is then fitted to its two
+        # long edges over its whole length (the direction's noise falls as length^-1.5),
+        # and the beam's edges are expressed in that frame.
+        (ha, hb), (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
         e, n, axis_b, hub_w, sd_hub = self._hub_axis(
-            image, clamp + back_a * e, clamp, hub_w, _END_MARGIN_PX * self.px_m
+            ha, hb, back, clamp, e, _END_MARGIN_PX * self.px_m
         )
         clamp = clamp - ((clamp @ n) - axis_b) * n
-        # Beam edges in the hub frame (a from the clamp along e, b along n).
-        la, lb, blur = self._beam_edges(image, rough, clamp, e, n, w_beam, length, hub_w)
+        la, lb = self._beam_frame(pa, pb, clamp, e, n, hub_w, length)
         amax = float(max(la[:, 0].max(), lb[:, 0].max()))
         fit = fit_centreline(la, lb, self.poly_degree, amax)
         if isinstance(fit, str):
@@ -293,18 +298,18 @@ class Measurer:
         self,
         image: NDArray[np.uint8],
         line_m: NDArray[np.float64],
-        half_width_m: float,
-        estimator: str | None = None,
+        half_width_m: float | NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         # Half width in pixels across the strip, point by point (perspective foreshortens
         # across and along differently).
         t = np.gradient(line_m, axis=0)
         t /= np.hypot(t[:, 0], t[:, 1])[:, None]
         nrm = np.column_stack([-t[:, 1], t[:, 0]])
-        both = self.to_px(np.vstack([line_m, line_m + half_width_m * nrm]))
+        hw = np.asarray(half_width_m, dtype=np.float64)
+        both = self.to_px(np.vstack([line_m, line_m + (hw[:, None] if hw.ndim else hw) * nrm]))
         px, off = both[: len(line_m)], both[len(line_m) :]
         across = np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
-        edges = strip_edges(image, px, across, estimator=estimator or self.edge_estimator)
+        edges = strip_edges(image, px, across, estimator=self.edge_estimator)
         if len(edges.side_a) < 5:
             raise FrameFailure("too few edge points (strip not visible)")
         keep = edges.contrast > 0.35 * median(edges.contrast)
@@ -314,31 +319,22 @@ class Measurer:
 
     def _hub_axis(
         self,
-        image: NDArray[np.uint8],
+        pa: NDArray[np.float64],
+        pb: NDArray[np.float64],
         back: NDArray[np.float64],
         front: NDArray[np.float64],
-        width: float,
+        e: NDArray[np.float64],
         margin: float,
-        estimator: str | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float, float]:
-        """Hub axis from its two long edges between ``back`` and ``front`` (plane, m),
-        ``margin`` clear of both ends, fitted as parallel lines in the plane. Returns the
-        unit direction (back to front) and normal, the axis offset along the normal, the
-        width and the standard uncertainty of the direction (rad)."""
-        d = front - back
-        length = float(np.linalg.norm(d))
-        if length < max(20 * self.px_m, 2.0 * width):
-            raise FrameFailure("hub too short in view to fit its axis")
-        e = d / length
-        # A scan line (a pixel row or column) crosses the two edges up to a hub width
-        # apart along the axis: scan past the ends, then keep the points clear of them.
-        ext = 0.5 * width
-        t = np.linspace(-ext, length + ext, max(8, int((length + 2 * ext) / self.px_m / 3)))
-        line = back[None, :] + t[:, None] * e[None, :]
-        pa, pb, _ = self._strip_points(image, line, width / 2, estimator)
-        ka = ((pa - back) @ e > margin) & ((pa - back) @ e < length - margin)
-        kb = ((pb - back) @ e > margin) & ((pb - back) @ e < length - margin)
-        pa, pb = pa[ka], pb[kb]
+        """Hub axis from points (plane, m) on its two long edges (``pa``, ``pb``, from
+        :meth:`_scan`), those ``margin`` clear of ``back`` and ``front`` (the end faces),
+        fitted as parallel lines. ``e``: the rough axis direction. Returns the unit
+        direction (back to front) and normal, the axis offset along the normal, the width
+        and the standard uncertainty of the direction (rad)."""
+        length = float((front - back) @ e)
+        sa, sb = (pa - back) @ e, (pb - back) @ e
+        pa = pa[(sa > margin) & (sa < length - margin)]
+        pb = pb[(sb > margin) & (sb < length - margin)]
         if len(pa) < 5 or len(pb) < 5:
             raise FrameFailure("hub edges not visible")
         # Two robust passes: the common direction of both edges (the major axis of their
@@ -428,38 +424,76 @@ class Measurer:
             raise FrameFailure("no clear end edge (clamp or tip)")
         return float(t[0] + centre * step)
 
-    def _beam_edges(
+    def _scan(
         self,
         image: NDArray[np.uint8],
         rough: Rough,
+        back: NDArray[np.float64],
         clamp: NDArray[np.float64],
         e: NDArray[np.float64],
         n: NDArray[np.float64],
-        w_beam: float,
-        length: float,
         hub_w: float,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-        # Rough centre line in the plane, from past the clamp to short of the tip.
+        w_beam: float,
+    ) -> tuple[tuple[NDArray, NDArray], tuple[NDArray, NDArray], float]:
+        """Edge points (plane, m) of the hub (from past its back face to the clamp, along
+        the rough axis) and of the beam (along its rough centre line, short of the tip),
+        from one strip scan; and the beam edges' median ramp width (px). The points are
+        split at the clamp: the scan lines between the clamp and the beam's first ones
+        cross the shoulders and give points neither keeps."""
+        hub_len = float((clamp - back) @ e)
+        if hub_len < max(20 * self.px_m, 2.0 * hub_w):
+            raise FrameFailure("hub too short in view to fit its axis")
+        # A scan line (a pixel row or column) crosses the hub's two edges up to a hub
+        # width apart along the axis: start past the back face, keep points clear of it.
+        ext = 0.5 * hub_w
+        t = np.linspace(-ext, hub_len, max(8, int((hub_len + ext) / self.px_m / 3)))
+        # The beam from past the clamp (its first scan lines would cross the shoulders)
+        # to short of the tip (its last ones, the end face), on the rough centre line.
         rel = rough.beam - clamp
         a, b = rel @ e, rel @ n
         order = np.argsort(a)
         a, b = a[order], b[order]
         a_end = float((rough.tip - clamp) @ e)
-        # Scan lines near the ends cross the hub's shoulders or the end face.
         a0 = 0.5 * hub_w + 4 * self.px_m
         a1 = a_end - 0.6 * w_beam - 4 * self.px_m
-        if a1 - a0 < 0.3 * length:
+        if a1 - a0 < 0.3 * self.calibration.beam_length_m:
             raise FrameFailure("beam too short in view")
         aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
         bq = np.interp(aq, a, b)
-        line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
-        pa, pb, spread = self._strip_points(image, line, w_beam / 2)
+        line = np.empty((len(t) + len(aq), 2))
+        line[: len(t)] = back[None, :] + t[:, None] * e[None, :]
+        line[len(t) :] = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
+        half = np.concatenate([np.full(len(t), 0.5 * hub_w), np.full(len(aq), 0.5 * w_beam)])
+        pa, pb, spread = self._strip_points(image, line, half)
+        # Split at the clamp (the hub's points are cut again clear of both faces once
+        # the axis is fitted; the beam's once the clamp is final).
+        hub_a = ((pa + pb) * 0.5 - clamp) @ e < 0.0
+        beam = ((pa + pb) * 0.5 - clamp) @ e > a0 - 2 * self.px_m
+        if beam.sum() < 5:
+            raise FrameFailure("too few edge points (strip not visible)")
+        return (pa[hub_a], pb[hub_a]), (pa[beam], pb[beam]), median(spread[beam])
+
+    def _beam_frame(
+        self,
+        pa: NDArray[np.float64],
+        pb: NDArray[np.float64],
+        clamp: NDArray[np.float64],
+        e: NDArray[np.float64],
+        n: NDArray[np.float64],
+        hub_w: float,
+        length: float,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The beam's edge points in the hub frame (a from the clamp along e, b along n),
+        those clear of the shoulders, named by side: left (b above the other) first."""
         ha = np.column_stack([(pa - clamp) @ e, (pa - clamp) @ n])
         hb = np.column_stack([(pb - clamp) @ e, (pb - clamp) @ n])
-        # Name the sides by lateral sign: left (b > centre) and right.
+        a0 = 0.5 * hub_w + 4 * self.px_m
+        k = (ha[:, 0] > a0) & (hb[:, 0] > a0)
+        ha, hb = ha[k], hb[k]
+        if len(ha) < 5 or ha[:, 0].max() < 0.3 * length:
+            raise FrameFailure("beam too short in view")
         swap = median(ha[:, 1] - hb[:, 1]) < 0
-        left, right = (hb, ha) if swap else (ha, hb)
-        return left, right, median(spread)
+        return (hb, ha) if swap else (ha, hb)
 
     def _tip(
         self,
