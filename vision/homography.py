@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from itertools import combinations
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -168,13 +169,26 @@ def _design(
 def apply_homography(matrix: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
     """Map ``(N, 2)`` points through a 3x3 homography; points sent to infinity give NaN."""
     h = np.asarray(matrix, dtype=np.float64)
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    # Component by component: a (N, 2) @ (2, 3) product goes through BLAS at five times
-    # the cost for the tens of thousands of points a frame's measurement maps.
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(p) == 0 or h.shape != (3, 3) or not np.all(np.isfinite(h)):
+        return _apply_numpy(h, p)
+    # OpenCV's loop in double precision: a sixth of the time of the numpy expression
+    # (the measurement maps points a dozen times per frame), equal to it within
+    # rounding. OpenCV sends points with |w| <= FLT_EPSILON to (0, 0); those (and any
+    # true (0, 0)) are recomputed here so the result is the same as the formula's.
+    out = cv2.perspectiveTransform(p.reshape(-1, 1, 2), h).reshape(-1, 2)
+    zero = (out[:, 0] == 0.0) & (out[:, 1] == 0.0)
+    if zero.any():
+        out[zero] = _apply_numpy(h, p[zero])
+    return out
+
+
+def _apply_numpy(h: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`apply_homography` by the formula; points with w = 0 give NaN."""
     x, y = p[:, 0], p[:, 1]
     w = x * h[2, 0] + y * h[2, 1] + h[2, 2]
     out = np.empty_like(p)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         out[:, 0] = (x * h[0, 0] + y * h[0, 1] + h[0, 2]) / w
         out[:, 1] = (x * h[1, 0] + y * h[1, 1] + h[1, 2]) / w
     out[np.abs(w) < 1e-300] = np.nan
