@@ -154,20 +154,26 @@ def fit_centreline(
     keep = w > 0
     if keep[:nl].sum() < p + 3 or keep[nl:].sum() < p + 3:
         return "beam edges too ragged"
-    # Final fit: inliers, equal weights (the biweight only chose them).
-    wk = keep.astype(np.float64)
-    coef = _wlstsq(a_t, b, wk)
+    # Final fit: inliers, equal weights (the biweight only chose them). Its normal
+    # matrix also gives the covariance, and bordered with the root-slope column, the
+    # free-slope check below.
+    ak, bk, uk = a_t[:, keep], b[keep], u[keep]
+    gram, rhs = ak @ ak.T, ak @ bk
+    coef = np.linalg.solve(gram, rhs)
     r = b - coef @ a_t
     dof = max(int(keep.sum()) - a_t.shape[0], 1)
     s2 = float(np.sum(r[keep] ** 2)) / dof
     infl = max(correlation_inflation(r[:nl][keep[:nl]]), correlation_inflation(r[nl:][keep[nl:]]))
-    ak = a_t[:, keep]
-    cov = np.linalg.inv(ak @ ak.T) * s2 * infl
+    cov = np.linalg.inv(gram) * s2 * infl
     g = _tip_gradient(degree)
     tip_sd = math.sqrt(max(float(g @ cov @ g), 0.0))
     # The prior's check: the same inliers with a free slope at the root.
-    free = np.vstack([ak, u[keep]])
-    slope = float(_wlstsq(free, b[keep], np.ones(free.shape[1]))[-1]) / amax
+    p1 = gram.shape[0]
+    gram_f = np.empty((p1 + 1, p1 + 1))
+    gram_f[:p1, :p1] = gram
+    gram_f[:p1, p1] = gram_f[p1, :p1] = ak @ uk
+    gram_f[p1, p1] = uk @ uk
+    slope = float(np.linalg.solve(gram_f, np.append(rhs, uk @ bk))[-1]) / amax
     centre_u = _to_power(degree).T @ coef[2:]
     centre_u[0] += 0.5 * (coef[0] + coef[1])
     return CentreFit(
@@ -190,9 +196,15 @@ def _wlstsq(a_t: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.floa
     return np.asarray(np.linalg.solve(aw @ a_t.T, aw @ b))
 
 
+#: Trapezoid samples along the centre line for arc lengths: the rule's error,
+#: ``L h^2 max|f''| / 12`` with ``f = sqrt(1 + b'^2)``, is below 1e-7 m for the beam's
+#: curvatures (|b''| < 1 /m, |b'| < 0.2 over 0.85 m).
+_ARC_SAMPLES = 801
+
+
 def arc_length(centre: CentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
-    a = np.linspace(0.0, a_end, 2001)
+    a = np.linspace(0.0, a_end, _ARC_SAMPLES)
     return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
 
 
@@ -200,7 +212,7 @@ def stations_to_a(
     centre: CentreLine, stations: NDArray[np.float64], a_end: float
 ) -> NDArray[np.float64]:
     """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
-    a = np.linspace(0.0, max(a_end, float(stations.max()) + 0.01), 4001)
+    a = np.linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
     ds = np.sqrt(1.0 + centre.deriv(a) ** 2)
     s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
     return np.interp(stations, s, a)
