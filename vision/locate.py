@@ -70,9 +70,11 @@ def find_strip(
         step0 = float(offsets[1] - offsets[0])
         i0 = max(int((expect - near - float(offsets[0])) / step0) - 1, 0)
         i1 = min(int((expect + near - float(offsets[0])) / step0) + 2, n)
-        close = np.abs(offsets[i0:i1] - expect) <= near if i0 < i1 else np.zeros(0, bool)
-        if close.any():
-            hi = float(v[i0:i1][close].max())
+        # The offsets are ascending, so the close ones are one run: found in plain
+        # floats (a few dozen), then one max over it.
+        close = [j for j, o in enumerate(offsets[i0:i1].tolist()) if abs(o - expect) <= near]
+        if close:
+            hi = float(v[i0 + close[0] : i0 + close[-1] + 1].max())
     if hi - lo < 12.0:
         return None
     thr = 0.5 * (lo + hi)
