@@ -95,3 +95,21 @@ def test_shape_and_finiteness_are_checked() -> None:
         dlt_homography(np.full((4, 2), np.nan), SQUARE)
     with pytest.raises(ValueError, match="same shape"):
         dlt_homography(np.vstack([SQUARE, [[1, 2]]]), SQUARE)
+
+
+def test_apply_homography_points_at_and_near_the_horizon() -> None:
+    """The line w = 0 maps to infinity: NaN there, and the formula's (huge, finite)
+    value just beside it, not the (0, 0) OpenCV's transform puts for |w| <= FLT_EPSILON."""
+    h = np.array([[1.1, 0.02, 3.0], [0.01, 0.9, 4.0], [1e-3, 2e-3, -1.0]])
+    pts = np.array([[1000.0, 0.0], [1000.0 + 1e-5, 0.0], [0.0, 0.0], [3.0, 7.0]])
+    out = apply_homography(h, pts)
+    assert np.all(np.isnan(out[0]))
+    w = 1e-3 * pts[1, 0] - 1.0
+    np.testing.assert_allclose(out[1], [(1.1 * pts[1, 0] + 3.0) / w, (0.01 * pts[1, 0] + 4.0) / w])
+    np.testing.assert_allclose(out[2], [-3.0, -4.0])
+    ref = (h @ [3.0, 7.0, 1.0])[:2] / (h @ [3.0, 7.0, 1.0])[2]
+    np.testing.assert_allclose(out[3], ref, rtol=1e-14)
+    # a plane point that truly maps to the image origin stays there
+    g = np.eye(3)
+    np.testing.assert_array_equal(apply_homography(g, [[0.0, 0.0]]), [[0.0, 0.0]])
+    assert apply_homography(g, np.zeros((0, 2))).shape == (0, 2)
