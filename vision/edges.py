@@ -262,9 +262,11 @@ def _erf_fit(
 ) -> NDArray[np.float64]:
     """:func:`erf_edge` on profiles (samples, lines).
 
-    The Gauss-Newton sums are taken with the per-line constants factored out: with
-    ``u = sign (j - c) / s`` and ``g = exp(-u^2 / 2)``, d model / d c = k g and
-    d model / d s = k sign g u, ``k = -sign (hi - lo) / (s sqrt(2 pi))``."""
+    Two stages. The width: joint (c, s) Gauss-Newton steps on a subsample of each block's
+    lines (at most ``_WIDTH_LINES``), whose median width is the block's ``s`` (a symmetric
+    edge's position and width are orthogonal parameters, so the position hardly depends
+    on the width's small error). The position: ``c``-only Gauss-Newton steps on every
+    line with that width."""
     amp = np.maximum(hi - lo, 1e-6)
     ok = np.isfinite(start)
     c = np.where(ok, start, 0.0)
@@ -272,45 +274,88 @@ def _erf_fit(
     # One window of samples about the start (it is within a sample of the edge): +-3
     # samples hold all but ~1e-3 of a sharp edge's information (the weight of a sample
     # u widths out is exp(-u^2)); blurred edges (median width above 1.2 px) get +-4.
-    centre = np.round(c)
+    # Lines without a start sit at the profile's middle (their result is NaN anyway).
+    centre = np.where(ok, np.round(c), float(np.shape(prof)[0] // 2))
+    c = np.where(ok, c, centre)
     half = 3 if not ok.any() or median(s[ok]) <= 1.2 else 4
     idx = np.arange(-half, half + 1)[:, None] + centre.astype(np.intp)[None, :]
     samples, valid = _gather(np.ascontiguousarray(prof), idx)
-    every = bool(valid.all())
     # The model is evaluated in single precision (twice the numpy throughput; numpy's
     # double exp is even scalar code on CPUs without AVX-512), about the window's
     # centre: the residuals are then good to 1e-5 DN and a step to 1e-7 px, far below
     # the noise. The positions themselves, and the 2x2 solves, stay double.
-    v = (samples - lo).astype(np.float32)
-    offs = np.arange(-half, half + 1, dtype=np.float32)[:, None]
-    amp32 = amp.astype(np.float32)
-    root2pi = math.sqrt(2 * math.pi)
-    for it in range(4):
-        u = (offs - (c - centre).astype(np.float32)) * (sign / s).astype(np.float32)
-        g = np.exp(np.float32(-0.5) * u * u)
-        if not every:
-            g = np.where(valid, g, np.float32(0.0))  # a zero weight drops the sample
-        r = v - amp32 * _ndtr_from_weight(u, g)
-        k = (-sign / root2pi) * amp / s
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if it < 2:
-                gu = g * u
-                s0, s1, s2 = (_colsum(g * g), _colsum(g * gu), _colsum(gu * gu))
-                t0, t1 = _colsum(g * r), _colsum(gu * r)
-                kd = k * (s0 * s2 - s1 * s1)
-                dc = (s2 * t0 - s1 * t1) / kd
-                ds = sign * (s0 * t1 - s1 * t0) / kd
-            else:
-                dc = _colsum(g * r) / _colsum(g * g) / k
+    fit = _ErfWindow(
+        (samples - lo).astype(np.float32),
+        None if valid.all() else valid,
+        np.arange(-half, half + 1, dtype=np.float32)[:, None],
+        amp,
+        sign,
+    )
+    # Width, per block, from a subsample of its lines.
+    for blk in np.array_split(np.arange(len(s)), blocks):
+        lines = blk[ok[blk]]
+        if not len(lines):
+            continue
+        sub = lines[:: max(1, len(lines) // _WIDTH_LINES)]
+        part = fit.select(sub)
+        cs, ss, cen = c[sub], s[sub], centre[sub]
+        for _ in range(2):
+            dc, ds = part.step(cs, cen, ss, joint=True)
+            cs = cs + np.where(np.isfinite(dc), _clip(dc, -1.0, 1.0), 0.0)
+            ss = _clip(ss + np.where(np.isfinite(ds), _clip(ds, -0.5, 0.5), 0.0), 0.3, 4.0)
+        s[blk] = median(ss)
+    # Position, every line.
+    for _ in range(3):
+        dc, _ds = fit.step(c, centre, s, joint=False)
         c = c + np.where(np.isfinite(dc), _clip(dc, -1.0, 1.0), 0.0)
-        if it < 2:
-            s = _clip(s + np.where(np.isfinite(ds), _clip(ds, -0.5, 0.5), 0.0), 0.3, 4.0)
-        if it == 1:
-            for blk in np.array_split(np.arange(len(s)), blocks):
-                if ok[blk].any():
-                    s[blk] = median(s[blk][ok[blk]])
     bad = ~ok | (np.abs(c - start) > 2.0) | (hi - lo <= 1.0)
     return np.where(bad, np.nan, c)
+
+
+#: Lines per block whose joint fit sets the block's edge width (its median).
+_WIDTH_LINES = 96
+
+
+@dataclass
+class _ErfWindow:
+    """The samples of :func:`_erf_fit`'s windows (minus ``lo``, (window, lines), float32),
+    where they are valid (None: all), the window offsets and the per-line amplitude."""
+
+    v: NDArray[np.float32]
+    valid: NDArray[np.bool_] | None
+    offs: NDArray[np.float32]
+    amp: NDArray[np.float64]
+    sign: float
+
+    def __post_init__(self) -> None:
+        self.amp32 = self.amp.astype(np.float32)
+
+    def select(self, lines: NDArray[np.intp]) -> _ErfWindow:
+        valid = None if self.valid is None else self.valid[:, lines]
+        return _ErfWindow(self.v[:, lines], valid, self.offs, self.amp[lines], self.sign)
+
+    def step(
+        self, c: NDArray[np.float64], centre: NDArray[np.float64], s: NDArray[np.float64], joint: bool
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """One Gauss-Newton step: (dc, ds) jointly, or (dc, None) at fixed width."""
+        sign = self.sign
+        u = (self.offs - (c - centre).astype(np.float32)) * (sign / s).astype(np.float32)
+        g = np.exp(np.float32(-0.5) * u * u)
+        if self.valid is not None:
+            g = np.where(self.valid, g, np.float32(0.0))  # a zero weight drops the sample
+        r = self.v - self.amp32 * _ndtr_from_weight(u, g)
+        k = (-sign / _ROOT2PI) * self.amp / s
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            if not joint:
+                return _colsum(g * r) / _colsum(g * g) / k, None
+            gu = g * u
+            s0, s1, s2 = (_colsum(g * g), _colsum(g * gu), _colsum(gu * gu))
+            t0, t1 = _colsum(g * r), _colsum(gu * r)
+            kd = k * (s0 * s2 - s1 * s1)
+            return (s2 * t0 - s1 * t1) / kd, sign * (s0 * t1 - s1 * t0) / kd
+
+
+_ROOT2PI = math.sqrt(2 * math.pi)
 
 
 def _colsum(x: NDArray[np.float32]) -> NDArray[np.float64]:
