@@ -16,6 +16,7 @@ Methods
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 from collections.abc import Sequence
@@ -33,7 +34,7 @@ from vision.centreline import (
     fit_centreline,
     stations_to_a,
 )
-from vision.edges import strip_edges
+from vision.edges import strip_edges_many
 from vision.homography import apply_homography
 from vision.locate import FrameFailure, Rough, locate, search_circles
 from vision.sampling import bilinear, median
@@ -222,10 +223,10 @@ class Measurer:
         clamp = origin0 + a_clamp * e
         back_a = self._back_face(image, clamp, e, n, hub_w, float((rough.hub_back - clamp) @ e))
         back = clamp + back_a * e
-        # One scan across the hub and the beam (a strip scan's fixed cost is about the
-        # cost of its lines: one call, not two). The hub's axis is then fitted to its two
-        # long edges over its whole length (the direction's noise falls as length^-1.5),
-        # and the beam's edges are expressed in that frame.
+        # The hub's and the beam's edges, scanned in one pass (a scan's fixed cost is
+        # about that of its lines). The hub's axis is then fitted to its two long edges
+        # over its whole length (the direction's noise falls as length^-1.5), and the
+        # beam's edges are expressed in that frame.
         (ha, hb), (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
         e, n, axis_b, hub_w, sd_hub = self._hub_axis(
             ha, hb, back, clamp, e, _END_MARGIN_PX * self.px_m
@@ -297,25 +298,39 @@ class Measurer:
     def _strip_points(
         self,
         image: NDArray[np.uint8],
-        line_m: NDArray[np.float64],
-        half_width_m: float | NDArray[np.float64],
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        # Half width in pixels across the strip, point by point (perspective foreshortens
-        # across and along differently).
-        t = np.gradient(line_m, axis=0)
-        t /= np.hypot(t[:, 0], t[:, 1])[:, None]
-        nrm = np.column_stack([-t[:, 1], t[:, 0]])
-        hw = np.asarray(half_width_m, dtype=np.float64)
-        both = self.to_px(np.vstack([line_m, line_m + (hw[:, None] if hw.ndim else hw) * nrm]))
-        px, off = both[: len(line_m)], both[len(line_m) :]
+        strips: list[tuple[NDArray[np.float64], float]],
+    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
+        """Edge points (plane, m) on both sides of strips ``(centre line (K, 2) m, half
+        width m)``, scanned in one pass, and the ramp widths (px) of each point pair."""
+        lines, offsets = [], []
+        for line_m, half_m in strips:
+            # Half width in pixels across the strip, point by point (perspective
+            # foreshortens across and along differently).
+            t = np.gradient(line_m, axis=0)
+            t /= np.hypot(t[:, 0], t[:, 1])[:, None]
+            lines.append(line_m)
+            offsets.append(line_m + half_m * np.column_stack([-t[:, 1], t[:, 0]]))
+        both = self.to_px(np.vstack(lines + offsets))
+        sizes = np.cumsum([0] + [len(x) for x in lines])
+        px, off = both[: sizes[-1]], both[sizes[-1] :]
         across = np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
-        edges = strip_edges(image, px, across, estimator=self.edge_estimator)
-        if len(edges.side_a) < 5:
-            raise FrameFailure("too few edge points (strip not visible)")
-        keep = edges.contrast > 0.35 * median(edges.contrast)
-        k = int(keep.sum())
-        plane = self.to_plane(np.vstack([edges.side_a[keep], edges.side_b[keep]]))
-        return plane[:k], plane[k:], edges.spread[keep]
+        found = strip_edges_many(
+            image,
+            [(px[a:b], across[a:b]) for a, b in itertools.pairwise(sizes)],
+            estimator=self.edge_estimator,
+        )
+        kept = []
+        for edges in found:
+            if len(edges.side_a) < 5:
+                raise FrameFailure("too few edge points (strip not visible)")
+            keep = edges.contrast > 0.35 * median(edges.contrast)
+            kept.append((edges.side_a[keep], edges.side_b[keep], edges.spread[keep]))
+        plane = self.to_plane(np.vstack([p for a, b, _ in kept for p in (a, b)]))
+        out, i = [], 0
+        for a, _b, spread in kept:
+            out.append((plane[i : i + len(a)], plane[i + len(a) : i + 2 * len(a)], spread))
+            i += 2 * len(a)
+        return out
 
     def _hub_axis(
         self,
@@ -435,18 +450,18 @@ class Measurer:
         hub_w: float,
         w_beam: float,
     ) -> tuple[tuple[NDArray, NDArray], tuple[NDArray, NDArray], float]:
-        """Edge points (plane, m) of the hub (from past its back face to the clamp, along
-        the rough axis) and of the beam (along its rough centre line, short of the tip),
-        from one strip scan; and the beam edges' median ramp width (px). The points are
-        split at the clamp: the scan lines between the clamp and the beam's first ones
-        cross the shoulders and give points neither keeps."""
+        """Edge points (plane, m) of the hub (past both its faces, along the rough axis)
+        and of the beam (along its rough centre line, from past the shoulders to short of
+        the tip), the two strips scanned in one pass; and the beam edges' median ramp
+        width (px)."""
         hub_len = float((clamp - back) @ e)
         if hub_len < max(20 * self.px_m, 2.0 * hub_w):
             raise FrameFailure("hub too short in view to fit its axis")
         # A scan line (a pixel row or column) crosses the hub's two edges up to a hub
-        # width apart along the axis: start past the back face, keep points clear of it.
+        # width apart along the axis: scan past both faces, keep points clear of them.
         ext = 0.5 * hub_w
-        t = np.linspace(-ext, hub_len, max(8, int((hub_len + ext) / self.px_m / 3)))
+        t = np.linspace(-ext, hub_len + ext, max(8, int((hub_len + 2 * ext) / self.px_m / 3)))
+        hub_line = back[None, :] + t[:, None] * e[None, :]
         # The beam from past the clamp (its first scan lines would cross the shoulders)
         # to short of the tip (its last ones, the end face), on the rough centre line.
         rel = rough.beam - clamp
@@ -460,18 +475,11 @@ class Measurer:
             raise FrameFailure("beam too short in view")
         aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
         bq = np.interp(aq, a, b)
-        line = np.empty((len(t) + len(aq), 2))
-        line[: len(t)] = back[None, :] + t[:, None] * e[None, :]
-        line[len(t) :] = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
-        half = np.concatenate([np.full(len(t), 0.5 * hub_w), np.full(len(aq), 0.5 * w_beam)])
-        pa, pb, spread = self._strip_points(image, line, half)
-        # Split at the clamp (the hub's points are cut again clear of both faces once
-        # the axis is fitted; the beam's once the clamp is final).
-        hub_a = ((pa + pb) * 0.5 - clamp) @ e < 0.0
-        beam = ((pa + pb) * 0.5 - clamp) @ e > a0 - 2 * self.px_m
-        if beam.sum() < 5:
-            raise FrameFailure("too few edge points (strip not visible)")
-        return (pa[hub_a], pb[hub_a]), (pa[beam], pb[beam]), median(spread[beam])
+        beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
+        (ha, hb, _), (pa, pb, spread) = self._strip_points(
+            image, [(hub_line, 0.5 * hub_w), (beam_line, 0.5 * w_beam)]
+        )
+        return (ha, hb), (pa, pb), median(spread)
 
     def _beam_frame(
         self,
