@@ -284,6 +284,10 @@ def _strip_end(
     return last + (t[below[0]] if below.size else t[-1]) * d
 
 
+#: Cross-profiles sampled at a time by :func:`_follow`.
+_FOLLOW_BATCH = 12
+
+
 def _follow(
     image: NDArray[np.uint8],
     to_px: ToPx,
@@ -297,37 +301,48 @@ def _follow(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Follow a bright strip from ``start`` along ``direction`` until it ends.
 
-    All cross-profiles (perpendicular to ``direction``, +-``half_m``) are sampled in one
-    call; the strip is then followed through them, each search starting where the last
-    crossing was."""
+    The cross-profiles (perpendicular to ``direction``, +-``half_m``) are sampled a batch
+    at a time (a strip usually ends well before ``max_len``); the strip is then followed
+    through them, each search starting where the last crossing was."""
     step = max(step_widths * width, 4 * px_m)
-    ts = np.arange(step, max_len + step / 2, step)
+    ts_all = np.arange(step, max_len + step / 2, step)
     n = np.array([-direction[1], direction[0]])
     offs = np.arange(-half_m, half_m + 0.375 * px_m, 0.75 * px_m)
-    pts = np.empty((len(ts), len(offs), 2))
-    for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-        pts[:, :, c] = (start[c] + ts[:, None] * direction[c]) + offs[None, :] * n[c]
-    vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
-    # The levels of every finite profile in one call (the search itself depends on where
-    # the strip was in the previous profile).
-    finite = np.asarray(np.isfinite(vals).all(axis=1), dtype=bool)
-    levels = np.full((len(ts), 2), np.nan)
-    if finite.any():
-        levels[finite] = profile_levels(vals[finite])
-    known = [
-        (lo, hi) if ok else None
-        for (lo, hi), ok in zip(levels.tolist(), finite.tolist(), strict=True)
-    ]
-    centres, widths = [], []
+    centres: list[float] = []
+    widths: list[float] = []
     expect, prev_w = 0.0, width
-    for k in range(len(ts)):
-        lv = known[k]
-        s = find_strip(vals[k], offs, expect, near=0.6 * max(prev_w, width), levels=lv)
-        if s is None or s.width < 0.5 * width or abs(s.centre - expect) > 0.7 * max(prev_w, width):
-            break
-        centres.append(s.centre)
-        widths.append(s.width)
-        expect, prev_w = s.centre, s.width
+    for b0 in range(0, len(ts_all), _FOLLOW_BATCH):
+        ts = ts_all[b0 : b0 + _FOLLOW_BATCH]
+        pts = np.empty((len(ts), len(offs), 2))
+        for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
+            pts[:, :, c] = (start[c] + ts[:, None] * direction[c]) + offs[None, :] * n[c]
+        vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
+        # The levels of every finite profile of the batch in one call (the search itself
+        # depends on where the strip was in the previous profile).
+        finite = np.asarray(np.isfinite(vals).all(axis=1), dtype=bool)
+        levels = np.full((len(ts), 2), np.nan)
+        if finite.any():
+            levels[finite] = profile_levels(vals[finite])
+        known = [
+            (lo, hi) if ok else None
+            for (lo, hi), ok in zip(levels.tolist(), finite.tolist(), strict=True)
+        ]
+        for k in range(len(ts)):
+            near = 0.6 * max(prev_w, width)
+            s = find_strip(vals[k], offs, expect, near=near, levels=known[k])
+            if (
+                s is None
+                or s.width < 0.5 * width
+                or abs(s.centre - expect) > 0.7 * max(prev_w, width)
+            ):
+                break
+            centres.append(s.centre)
+            widths.append(s.width)
+            expect, prev_w = s.centre, s.width
+        else:
+            continue
+        break
+    ts = ts_all
     if not centres:
         return np.zeros((0, 2)), np.zeros(0)
     cs = np.array(centres)
