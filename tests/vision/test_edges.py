@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from vision.edges import _ndtr_from_weight, erf_edge, strip_edges
+from vision.edges import _ndtr_from_weight, erf_edge, strip_edges, strip_edges_many
 from vision.sampling import bilinear, median
 
 
@@ -41,6 +41,35 @@ def test_strip_edges_find_both_sides_of_a_blurred_strip(transpose: bool) -> None
     np.testing.assert_allclose(a[:, 1], y0 + slope * a[:, 0] - across, atol=0.02)
     np.testing.assert_allclose(b[:, 1], y0 + slope * b[:, 0] + across, atol=0.02)
     np.testing.assert_allclose(edges.contrast, 170.0, atol=4.0)
+
+
+def test_strips_scanned_together_give_what_each_gives_alone() -> None:
+    """A wide bar (a hub: 19 px half width, blurred 1.1 px, on a dimmer plateau) and a
+    narrow strip (a beam) side by side along the image, plus a strip scanned the other
+    way: one pass must give every strip exactly its own scan's edges (its reach,
+    background samples, level smoothing and edge width stay its own)."""
+    rng = np.random.default_rng(5)
+    img = np.maximum(
+        _strip_image((300, 600), 80.4, 0.05, 19.0, 1.1),
+        _strip_image((300, 600), 210.7, -0.03, 9.2, 0.7),
+    )
+    img = np.maximum(img, _strip_image((600, 300), 150.2, 0.02, 8.0, 0.8).T)
+    img = np.clip(img + rng.normal(0.0, 3.0, img.shape), 0, 255).astype(np.uint8)
+    xs = np.linspace(20.0, 250.0, 30)
+    hub = np.column_stack([xs, 80.4 + 0.05 * xs])
+    xs2 = np.linspace(330.0, 580.0, 30)
+    beam = np.column_stack([xs2, 210.7 - 0.03 * xs2])
+    ys = np.linspace(10.0, 60.0, 20)
+    cross = np.column_stack([150.2 + 0.02 * ys, ys])  # scanned along rows
+    strips = [(hub, 19.0), (beam, np.full(30, 9.2)), (cross, 8.0)]
+    together = strip_edges_many(img, strips, estimator="erf")
+    for (line, half), got in zip(strips, together, strict=True):
+        alone = strip_edges(img, line, half, estimator="erf")
+        assert len(alone.side_a) > 15
+        np.testing.assert_array_equal(got.side_a, alone.side_a)
+        np.testing.assert_array_equal(got.side_b, alone.side_b)
+        np.testing.assert_array_equal(got.contrast, alone.contrast)
+        np.testing.assert_array_equal(got.spread, alone.spread)
 
 
 def test_a_falling_edge_is_the_rising_edge_of_the_negated_profile() -> None:
