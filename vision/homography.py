@@ -170,16 +170,17 @@ def apply_homography(matrix: ArrayLike, points: ArrayLike) -> NDArray[np.float64
     """Map ``(N, 2)`` points through a 3x3 homography; points sent to infinity give NaN."""
     h = np.asarray(matrix, dtype=np.float64)
     p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
-    if len(p) == 0 or h.shape != (3, 3) or not np.all(np.isfinite(h)):
+    if len(p) == 0 or h.shape != (3, 3):
         return _apply_numpy(h, p)
     # OpenCV's loop in double precision: a sixth of the time of the numpy expression
     # (the measurement maps points a dozen times per frame), equal to it within
-    # rounding. OpenCV sends points with |w| <= FLT_EPSILON to (0, 0); those (and any
-    # true (0, 0)) are recomputed here so the result is the same as the formula's.
+    # rounding. OpenCV sends points with |w| <= FLT_EPSILON (or NaN) to (0, 0); those
+    # (and any true (0, 0)) are recomputed here so the result is the formula's.
     out = cv2.perspectiveTransform(p.reshape(-1, 1, 2), h).reshape(-1, 2)
-    zero = (out[:, 0] == 0.0) & (out[:, 1] == 0.0)
-    if zero.any():
-        out[zero] = _apply_numpy(h, p[zero])
+    if not out.all():  # one pass; a coordinate exactly 0.0 is rare
+        zero = (out[:, 0] == 0.0) & (out[:, 1] == 0.0)
+        if zero.any():
+            out[zero] = _apply_numpy(h, p[zero])
     return out
 
 
