@@ -67,14 +67,22 @@ def find_strip(
     if near is not None:
         # Only the slice about the window (uniform offsets) is tested, a sample wider
         # than it either side, with the same test.
+        # The offsets are ascending and uniform, so the close ones are one run: its
+        # ends from the spacing, then settled by the same test on single offsets.
+        o0 = float(offsets[0])
         step0 = float(offsets[1] - offsets[0])
-        i0 = max(int((expect - near - float(offsets[0])) / step0) - 1, 0)
-        i1 = min(int((expect + near - float(offsets[0])) / step0) + 2, n)
-        # The offsets are ascending, so the close ones are one run: found in plain
-        # floats (a few dozen), then one max over it.
-        close = [j for j, o in enumerate(offsets[i0:i1].tolist()) if abs(o - expect) <= near]
-        if close:
-            hi = float(v[i0 + close[0] : i0 + close[-1] + 1].max())
+        j0 = min(max(int((expect - near - o0) / step0), 0), n - 1)
+        j1 = min(max(int((expect + near - o0) / step0), 0), n - 1)
+        while j0 > 0 and abs(float(offsets[j0 - 1]) - expect) <= near:
+            j0 -= 1
+        while j0 <= j1 and abs(float(offsets[j0]) - expect) > near:
+            j0 += 1
+        while j1 < n - 1 and abs(float(offsets[j1 + 1]) - expect) <= near:
+            j1 += 1
+        while j1 >= j0 and abs(float(offsets[j1]) - expect) > near:
+            j1 -= 1
+        if j0 <= j1:
+            hi = float(v[j0 : j1 + 1].max())
     if hi - lo < 12.0:
         return None
     thr = 0.5 * (lo + hi)
