@@ -39,7 +39,9 @@ class CentreLine:
     def __init__(self, coef_u: NDArray[np.float64], amax: float) -> None:
         self.coef = np.asarray(coef_u, dtype=np.float64)
         self.amax = float(amax)
-        self.dcoef = pw.polyder(self.coef) / self.amax
+        # d/da of the series in u = a / amax (numpy.polynomial's polyder, without its
+        # generic machinery: this is built once per frame).
+        self.dcoef = self.coef[1:] * np.arange(1, len(self.coef)) / self.amax
 
     def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         a = np.asarray(a, dtype=np.float64)

@@ -195,7 +195,10 @@ def _circle_candidates(
     noise = median(np.abs(np.diff(vv))) + 1.0
     out = []
     thr = max(10.0, 5 * noise)
-    peaks = np.flatnonzero((top > thr) & (top >= np.roll(top, 1)) & (top > np.roll(top, -1)) & ok)
+    # Local maxima around the circle (np.roll's generality costs more than the compare).
+    before = np.concatenate((top[-1:], top[:-1]))
+    after = np.concatenate((top[1:], top[:1]))
+    peaks = np.flatnonzero((top > thr) & (top >= before) & (top > after) & ok)
     tl = top.tolist()  # the half-width walks index single samples
     for p in peaks.tolist():
         half = tl[p] / 2
