@@ -144,16 +144,22 @@ def fit_centreline(
     w = np.ones(len(b))
     coef = np.zeros(a_t.shape[0])
     sig = math.inf
+    # The biweight only chooses the inliers (the final fit below weighs them equally),
+    # so the iterations stop once two in a row keep the same points.
+    keep = np.ones(len(b), dtype=bool)
     for it in range(4):
         coef = _wlstsq(a_t, b, w)
         r = b - coef @ a_t
         if it == 0:
             sig = 1.4826 * median(np.abs(r)) + 1e-12
         else:
-            sig = 1.4826 * median(np.abs(r[w > 0])) + 1e-12
+            sig = 1.4826 * median(np.abs(r[keep])) + 1e-12
         z = r / (TUKEY_C * sig)
-        w = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
-    keep = w > 0
+        inside = np.abs(z) < 1.0
+        w = np.where(inside, (1.0 - z * z) ** 2, 0.0)
+        if it >= 2 and np.array_equal(inside, keep):
+            break
+        keep = inside
     if keep[:nl].sum() < p + 3 or keep[nl:].sum() < p + 3:
         return "beam edges too ragged"
     # Final fit: inliers, equal weights (the biweight only chose them). Its normal
