@@ -339,19 +339,28 @@ def _window_edges_group(
     offs = np.arange(-hmax, hmax + 2)
     idx = peak[None, :] + offs[:, None]
     v, inrange = _gather(prof, idx, cols)
+    every = bool(inrange.all())
     # The steps of the window; step o (between samples o and o + 1 about the peak).
     d = np.diff(v, axis=0)
-    ok_step = inrange[:-1] & inrange[1:] & (np.abs(offs[:-1])[:, None] <= half[None, :])
-    d = np.where(ok_step & (d > 0), d, 0).astype(np.float64)
-    total = d.sum(axis=0)
+    ok_step = np.abs(offs[:-1])[:, None] <= half[None, :]
+    if not every:
+        ok_step &= inrange[:-1] & inrange[1:]
+    ok_step &= d > 0
+    d = np.where(ok_step, d, 0)
+    total = d.sum(axis=0, dtype=np.float64)
+    # Sums over the window as few whole-array operations as can be (each one's cost is
+    # mostly its call): the moment about the peak as one product with the offsets.
     with np.errstate(invalid="ignore", divide="ignore"):
-        centre = (d * (idx[:-1] + 0.5)).sum(axis=0) / total
+        centre = peak + 0.5 + (offs[:-1].astype(np.float64) @ d) / total
     if lo is None or hi is None:
         return centre, total, np.full(n, np.nan)
+    # The area of the window's samples above lo, in units of hi - lo: its 2 half + 2
+    # samples summed as integers.
     inwin = (offs[:, None] >= -half[None, :]) & (offs[:, None] <= half[None, :] + 1)
-    ok = np.all(inrange | ~inwin, axis=0)
-    frac = np.where(inwin, (v - lo[None, :]) / np.maximum(hi - lo, 1e-6)[None, :], 0.0)
-    area = (peak + half + 1).astype(np.float64) + 0.5 - frac.sum(axis=0)
+    ok = np.ones(n, dtype=bool) if every else np.all(inrange | ~inwin, axis=0)
+    total_v = np.where(inwin, v, 0).sum(axis=0, dtype=np.float64)
+    frac = (total_v - (2 * half + 2) * lo) / np.maximum(hi - lo, 1e-6)
+    area = (peak + half + 1).astype(np.float64) + 0.5 - frac
     return centre, total, np.where(ok & (hi - lo > 1.0), area, np.nan)
 
 
