@@ -296,7 +296,7 @@ def _strip_end(
 
 
 #: Cross-profiles sampled at a time by :func:`_follow`.
-_FOLLOW_BATCH = 12
+_FOLLOW_BATCH = 16
 
 
 def _follow(
