@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.sampling import bilinear, median
+from vision.sampling import BilinearPlan, bilinear, median
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -149,6 +149,21 @@ class SearchCircles:
     radii: tuple[float, float]  # m
     phi: tuple[NDArray[np.float64], NDArray[np.float64]]  # sample angles, rad
     px: tuple[NDArray[np.float64], NDArray[np.float64]]  # (n, 2) raw pixels
+    #: Sampling plans per image shape, made at the first frame of that shape.
+    plans: dict[tuple[int, ...], tuple[BilinearPlan, BilinearPlan]] = field(
+        default_factory=dict, compare=False
+    )
+
+    def sample(self, image: NDArray[np.uint8]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The image along both circles (bilinear, NaN off the image)."""
+        plans = self.plans.get(image.shape)
+        if plans is None:
+            plans = (
+                BilinearPlan.at(image.shape, self.px[0]),
+                BilinearPlan.at(image.shape, self.px[1]),
+            )
+            self.plans[image.shape] = plans
+        return plans[0].sample(image), plans[1].sample(image)
 
 
 def search_circles(
@@ -167,16 +182,14 @@ def search_circles(
 
 
 def _circle_candidates(
-    image: NDArray[np.uint8],
+    v: NDArray[np.float64],
     phi: NDArray[np.float64],
-    px: NDArray[np.float64],
     width: float,
     step: float,
 ) -> list[tuple[float, float]]:
     """(angle, contrast) of strips of about ``width`` crossing a circle about the pivot,
-    sampled at angles ``phi`` (raw pixels ``px``)."""
+    from the image sampled along it (``v``) at angles ``phi``."""
     n = len(phi)
-    v = bilinear(image, px)
     ok = np.isfinite(v)
     if ok.sum() < 10:
         return []
@@ -228,8 +241,9 @@ def locate(
         circles = search_circles(to_px, beam_length, beam_width, px_m)
     r1, r2 = circles.radii
     step = circles.step
-    c1 = _circle_candidates(image, circles.phi[0], circles.px[0], beam_width, step)
-    c2 = _circle_candidates(image, circles.phi[1], circles.px[1], beam_width, step)
+    v1, v2 = circles.sample(image)
+    c1 = _circle_candidates(v1, circles.phi[0], beam_width, step)
+    c2 = _circle_candidates(v2, circles.phi[1], beam_width, step)
     best = None
     for a1, k1 in c1:
         for a2, k2 in c2:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,34 +26,54 @@ def median(x: NDArray[np.float64]) -> float:
 
 def bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
     """Bilinear samples of a [row, col] image at points (N, 2) (x, y); NaN off the image."""
-    h, w = image.shape
-    x = xy[..., 0]
-    y = xy[..., 1]
-    # Four reductions decide the common case (every point inside; NaN fails them too)
-    # without the element-wise mask.
-    inside = bool(
-        x.size and x.min() >= 0 and y.min() >= 0 and x.max() <= w - 1 and y.max() <= h - 1
-    )
-    if inside:
-        xc, yc, ok = x, y, None
-    else:
-        ok = (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
-        xc = np.where(ok, x, 0.0)
-        yc = np.where(ok, y, 0.0)
-    # Non-negative here, so truncation is the floor.
-    x0 = np.minimum(xc.astype(np.intp), w - 2)
-    y0 = np.minimum(yc.astype(np.intp), h - 2)
-    fx = xc - x0
-    fy = yc - y0
-    # Gathers from the flat image (cheaper than 2-D fancy indexing).
-    flat = image.ravel()
-    i = y0 * w + x0
-    i00 = flat[i]
-    i10 = flat[i + w]
-    top = i00 + fx * (flat[i + 1] - i00.astype(np.float64))
-    bottom = i10 + fx * (flat[i + (w + 1)] - i10.astype(np.float64))
-    v = top + fy * (bottom - top)
-    return np.asarray(v) if ok is None else np.where(ok, v, np.nan)
+    return BilinearPlan.at(image.shape, xy).sample(image)
+
+
+@dataclass(frozen=True, eq=False)
+class BilinearPlan:
+    """:func:`bilinear` at fixed points for images of one shape: the four gather indices
+    and the weights, made once (points searched in every frame of a camera placement)."""
+
+    shape: tuple[int, ...]
+    idx: tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]
+    fx: NDArray[np.float64]
+    fy: NDArray[np.float64]
+    ok: NDArray[np.bool_] | None  # None: every point inside
+
+    @classmethod
+    def at(cls, shape: tuple[int, ...], xy: NDArray[np.float64]) -> BilinearPlan:
+        h, w = shape
+        x = xy[..., 0]
+        y = xy[..., 1]
+        # Four reductions decide the common case (every point inside; NaN fails them
+        # too) without the element-wise mask.
+        inside = bool(
+            x.size and x.min() >= 0 and y.min() >= 0 and x.max() <= w - 1 and y.max() <= h - 1
+        )
+        if inside:
+            xc, yc, ok = x, y, None
+        else:
+            ok = (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
+            xc = np.where(ok, x, 0.0)
+            yc = np.where(ok, y, 0.0)
+        # Non-negative here, so truncation is the floor.
+        x0 = np.minimum(xc.astype(np.intp), w - 2)
+        y0 = np.minimum(yc.astype(np.intp), h - 2)
+        i = y0 * w + x0  # gathers from the flat image: cheaper than 2-D fancy indexing
+        return cls(tuple(shape), (i, i + 1, i + w, i + (w + 1)), xc - x0, yc - y0, ok)
+
+    def sample(self, image: NDArray[np.uint8]) -> NDArray[np.float64]:
+        if image.shape != self.shape:
+            raise ValueError(f"plan made for images {self.shape}, got {image.shape}")
+        flat = image.ravel()
+        i00, i01, i10, i11 = self.idx
+        fx, fy = self.fx, self.fy
+        v00 = flat[i00]
+        v10 = flat[i10]
+        top = v00 + fx * (flat[i01] - v00.astype(np.float64))
+        bottom = v10 + fx * (flat[i11] - v10.astype(np.float64))
+        v = top + fy * (bottom - top)
+        return np.asarray(v) if self.ok is None else np.where(self.ok, v, np.nan)
 
 
 def edge_moment(
