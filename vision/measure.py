@@ -357,7 +357,9 @@ class Measurer:
         # four robust sigmas across it. x and y apart: (N, 2) arrays are slow to operate on.
         xa, ya, xb, yb = pa[:, 0], pa[:, 1], pb[:, 0], pb[:, 1]
         for _ in range(2):
-            dxa, dya, dxb, dyb = xa - xa.mean(), ya - ya.mean(), xb - xb.mean(), yb - yb.mean()
+            na, nb = len(xa), len(xb)  # sum / n: ndarray.mean's wrapper costs more here
+            dxa, dya = xa - xa.sum() / na, ya - ya.sum() / na
+            dxb, dyb = xb - xb.sum() / nb, yb - yb.sum() / nb
             sxx = float(dxa @ dxa + dxb @ dxb)
             syy = float(dya @ dya + dyb @ dyb)
             sxy = float(dxa @ dya + dxb @ dyb)
