@@ -270,12 +270,18 @@ def _inner_mean(
     """Mean of each line's samples k with ``|k - mid| < half`` (a difference of two
     cumulative sums; integer sums, exact)."""
     m, n = prof.shape
+    if n == 0:
+        return np.zeros(0)
     k0 = _clip(np.floor(mid - half).astype(np.intp) + 1, 0, m)
     k1 = _clip(np.ceil(mid + half).astype(np.intp), 0, m)  # one past the last
-    cs = np.zeros((m + 1, n), dtype=np.int32)
-    np.cumsum(prof, axis=0, out=cs[1:])
+    # Only the rows some line sums (the strip's middle, not its margins) are accumulated.
+    r0 = int(k0.min())
+    r1 = max(int(k1.max()), r0)
+    cs = np.zeros((r1 - r0 + 1, n), dtype=np.int32)
+    np.cumsum(prof[r0:r1], axis=0, out=cs[1:])
     rr = np.arange(n)
-    return np.asarray((cs[k1, rr] - cs[k0, rr]) / np.maximum(k1 - k0, 1), dtype=np.float64)
+    total = cs[k1 - r0, rr] - cs[k0 - r0, rr]
+    return np.asarray(total / np.maximum(k1 - k0, 1), dtype=np.float64)
 
 
 def _median(values: NDArray[np.int16]) -> NDArray[np.float64]:
