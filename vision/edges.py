@@ -72,12 +72,11 @@ def strip_edges_many(
     out = [_EMPTY] * len(strips)
     geos = [_scan_lines(image.shape, c, hw, margin_px, max_window) for c, hw in strips]
     for columns in (True, False):
-        which = [i for i, g in enumerate(geos) if g is not None and g.columns == columns]
+        which = [(i, g) for i, g in enumerate(geos) if g is not None and g.columns == columns]
         if which:
-            found = _scan(
-                image, columns, [geos[i] for i in which], margin_px, window, estimator, max_window
-            )
-            for i, edges in zip(which, found, strict=True):
+            chosen = [g for _, g in which]
+            found = _scan(image, columns, chosen, margin_px, window, estimator, max_window)
+            for (i, _), edges in zip(which, found, strict=True):
                 out[i] = edges
     return out
 
@@ -424,9 +423,9 @@ def _erf_fit(
     # estimate runs off on lines that cross something else): NaN, like no start. Those
     # lines sit at the profile's middle, so every window is whole.
     m = np.shape(prof)[0]
-    centre = np.round(c)
+    centre: NDArray[np.float64] = np.asarray(np.round(c), dtype=np.float64)
     ok &= (centre >= half) & (centre <= m - 1 - half)
-    centre = np.where(ok, centre, float(m // 2))
+    centre = np.asarray(np.where(ok, centre, float(m // 2)), dtype=np.float64)
     c = np.where(ok, c, centre)
     idx = np.arange(-half, half + 1)[:, None] + centre.astype(np.intp)[None, :]
     samples, valid = _gather(np.ascontiguousarray(prof), idx)
@@ -450,6 +449,7 @@ def _erf_fit(
         cs, ss, cen = c[sub], s[sub], centre[sub]
         for _ in range(2):
             dc, ds = part.step(cs, cen, ss, joint=True)
+            assert ds is not None  # the joint step's width update
             cs = cs + np.where(np.isfinite(dc), _clip(dc, -1.0, 1.0), 0.0)
             ss = _clip(ss + np.where(np.isfinite(ds), _clip(ds, -0.5, 0.5), 0.0), 0.3, 4.0)
         i = 0

@@ -176,7 +176,7 @@ def apply_homography(matrix: ArrayLike, points: ArrayLike) -> NDArray[np.float64
     # (the measurement maps points a dozen times per frame), equal to it within
     # rounding. OpenCV sends points with |w| <= FLT_EPSILON (or NaN) to (0, 0); those
     # (and any true (0, 0)) are recomputed here so the result is the formula's.
-    out = cv2.perspectiveTransform(p.reshape(-1, 1, 2), h).reshape(-1, 2)
+    out = np.asarray(cv2.perspectiveTransform(p.reshape(-1, 1, 2), h), np.float64).reshape(-1, 2)
     if not out.all():  # one pass; a coordinate exactly 0.0 is rare
         zero = (out[:, 0] == 0.0) & (out[:, 1] == 0.0)
         if zero.any():
