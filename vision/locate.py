@@ -336,7 +336,10 @@ def _follow(
     centres: list[float] = []
     widths: list[float] = []
     expect, prev_w = 0.0, width
+    lost = False
     for b0 in range(0, len(ts_all), _FOLLOW_BATCH):
+        if lost:
+            break
         ts = ts_all[b0 : b0 + _FOLLOW_BATCH]
         pts = np.empty((len(ts), len(offs), 2))
         for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
@@ -360,16 +363,14 @@ def _follow(
                 or s.width < 0.5 * width
                 or abs(s.centre - expect) > 0.7 * max(prev_w, width)
             ):
+                lost = True
                 break
             centres.append(s.centre)
             widths.append(s.width)
             expect, prev_w = s.centre, s.width
-        else:
-            continue
-        break
-    ts = ts_all
     if not centres:
         return np.zeros((0, 2)), np.zeros(0)
     cs = np.array(centres)
-    out = (start[None, :] + ts[: len(cs), None] * direction[None, :]) + cs[:, None] * n[None, :]
+    ts = ts_all[: len(cs)]
+    out = (start[None, :] + ts[:, None] * direction[None, :]) + cs[:, None] * n[None, :]
     return out, np.array(widths)

@@ -211,10 +211,8 @@ class Measurer:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
         rough = locate(image, self.to_px, length, w_beam, self.px_m, self._circles)
-        # The hub's axis: first through the rough centres of its cross-profiles (enough
-        # to place the searches for its end faces, whose lines lie symmetrically about
-        # it), then fitted to its two long edges over its whole length once both end
-        # faces are found (the direction's noise falls as length^-1.5).
+        # The hub's axis, first through the rough centres of its cross-profiles: enough
+        # to place the searches for its end faces, whose lines lie symmetrically about it.
         e, n, axis_b = _rough_axis(rough)
         hub_w = rough.hub_width
         # Clamp: the hub's end face, on its shoulders either side of the beam.
@@ -471,7 +469,7 @@ class Measurer:
         order = np.argsort(a)
         a, b = a[order], b[order]
         a_end = float((rough.tip - clamp) @ e)
-        a0 = 0.5 * hub_w + 4 * self.px_m
+        a0 = self._beam_start(hub_w)
         a1 = a_end - 0.6 * w_beam - 4 * self.px_m
         if a1 - a0 < 0.3 * self.calibration.beam_length_m:
             raise FrameFailure("beam too short in view")
@@ -482,6 +480,11 @@ class Measurer:
             image, [(hub_line, 0.5 * hub_w), (beam_line, 0.5 * w_beam)]
         )
         return (ha, hb), (pa, pb), median(spread)
+
+    def _beam_start(self, hub_w: float) -> float:
+        """Distance from the clamp (m) where the beam's edges start: scan lines nearer
+        the clamp cross the hub's shoulders."""
+        return 0.5 * hub_w + 4 * self.px_m
 
     def _beam_frame(
         self,
@@ -497,7 +500,7 @@ class Measurer:
         those clear of the shoulders, named by side: left (b above the other) first."""
         ha = np.column_stack([(pa - clamp) @ e, (pa - clamp) @ n])
         hb = np.column_stack([(pb - clamp) @ e, (pb - clamp) @ n])
-        a0 = 0.5 * hub_w + 4 * self.px_m
+        a0 = self._beam_start(hub_w)
         k = (ha[:, 0] > a0) & (hb[:, 0] > a0)
         ha, hb = ha[k], hb[k]
         if len(ha) < 5 or ha[:, 0].max() < 0.3 * length:
