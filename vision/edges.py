@@ -382,12 +382,12 @@ def erf_edge(
     ``lo + (hi - lo) Phi((j - c) / s)`` fitted to the samples ``j`` near ``start``
     (profiles (lines, samples)).
 
-    The step's width ``s`` is fitted per line first, then fixed at its median over the
-    lines (one lens, one edge direction) and only ``c`` is refitted: the maximum-
-    likelihood position under white noise, which weights each sample by the local slope
-    of the edge instead of equally (the area estimator's noise grows with its window).
-    ``blocks``: the lines are that many consecutive (near) equal blocks, each a
-    different edge with its own median width."""
+    The step's width ``s`` is fitted with ``c`` on a subsample of the lines and fixed at
+    its median (one lens, one edge direction); then only ``c`` is fitted on every line:
+    the maximum-likelihood position under white noise, which weights each sample by the
+    local slope of the edge instead of equally (the area estimator's noise grows with
+    its window). ``blocks``: the lines are that many consecutive (near) equal blocks,
+    each a different edge with its own median width."""
     return _erf_fit(
         np.asarray(prof).T, start, lo, hi, sigma0, 1.0 if rising else -1.0, blocks=blocks
     )
@@ -428,14 +428,14 @@ def _erf_fit(
     centre = np.asarray(np.where(ok, centre, float(m // 2)), dtype=np.float64)
     c = np.where(ok, c, centre)
     idx = np.arange(-half, half + 1)[:, None] + centre.astype(np.intp)[None, :]
-    samples, valid = _gather(np.ascontiguousarray(prof), idx)
+    # (Every line with a start has its whole window; the rest are clipped and dropped.)
+    samples, _ = _gather(np.ascontiguousarray(prof), idx)
     # The model is evaluated in single precision (twice the numpy throughput; numpy's
     # double exp is even scalar code on CPUs without AVX-512), about the window's
     # centre: the residuals are then good to 1e-5 DN and a step to 1e-7 px, far below
     # the noise. The positions themselves, and the 2x2 solves, stay double.
     fit = _ErfWindow(
         (samples - lo).astype(np.float32),
-        None if valid.all() else valid,
         np.arange(-half, half + 1, dtype=np.float32)[:, None],
         amp,
         sign,
@@ -489,10 +489,9 @@ _CONVERGED_PX = 1e-3
 @dataclass
 class _ErfWindow:
     """The samples of :func:`_erf_fit`'s windows (minus ``lo``, (window, lines), float32),
-    where they are valid (None: all), the window offsets and the per-line amplitude."""
+    the window offsets and the per-line amplitude."""
 
     v: NDArray[np.float32]
-    valid: NDArray[np.bool_] | None
     offs: NDArray[np.float32]
     amp: NDArray[np.float64]
     sign: float
@@ -501,8 +500,7 @@ class _ErfWindow:
         self.amp32 = self.amp.astype(np.float32)
 
     def select(self, lines: NDArray[np.intp]) -> _ErfWindow:
-        valid = None if self.valid is None else self.valid[:, lines]
-        return _ErfWindow(self.v[:, lines], valid, self.offs, self.amp[lines], self.sign)
+        return _ErfWindow(self.v[:, lines], self.offs, self.amp[lines], self.sign)
 
     def step(
         self,
@@ -518,8 +516,6 @@ class _ErfWindow:
         g = u * u
         g *= np.float32(-0.5)
         np.exp(g, out=g)
-        if self.valid is not None:
-            g = np.where(self.valid, g, np.float32(0.0))  # a zero weight drops the sample
         r = _ndtr_from_weight(u, g)
         r *= self.amp32
         np.subtract(self.v, r, out=r)
