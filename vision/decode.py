@@ -17,7 +17,14 @@ def decode(data: bytes) -> NDArray[np.uint8]:
     buf = np.frombuffer(bytes(data), dtype=np.uint8)
     if buf.size == 0:
         raise ValueError("empty image data")
-    img = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    # OpenCV warns on stderr about damaged data; the ValueError below says it once, so
+    # the caller's single error line is not preceded by a library's.
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    try:
+        img = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if img is None:
         raise ValueError("not a readable image (JPEG/PNG/...)")
     if img.dtype != np.uint8:

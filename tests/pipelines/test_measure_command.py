@@ -4,6 +4,8 @@ import json
 import math
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 
 from pipelines.cli import main
@@ -88,3 +90,15 @@ def test_bad_files_exit_2_with_one_line(files, capsys, args, words) -> None:
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and words in err and err.count("\n") == 1
+
+
+def test_a_truncated_image_gives_one_line_and_nothing_from_opencv(files, capfd) -> None:
+    """At the file-descriptor level: OpenCV's own warning about damaged data would be a
+    second line before ours."""
+    d = files["cal.json"].parent
+    ok, png = cv2.imencode(".png", np.full((64, 64), 128, np.uint8))
+    assert ok
+    (d / "cut.png").write_bytes(png.tobytes()[:50])
+    assert main(["measure", str(d / "cut.png"), "--calibration", str(d / "cal.json")]) == 2
+    err = capfd.readouterr().err
+    assert err.startswith("error: ") and "cut.png" in err and err.count("\n") == 1
