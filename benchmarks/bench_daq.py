@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from pipelines.bench_daq import run
+from pipelines.bench.daq import run
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)

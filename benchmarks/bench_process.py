@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from pipelines.bench_process import run
+from pipelines.bench.process import run
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from pipelines.bench_vision import run
+from pipelines.bench.vision import run
 
 if __name__ == "__main__":
     sys.exit(run(quick="--quick" in sys.argv[1:]))

@@ -18,7 +18,7 @@ import numpy as np
 from sim.beam import BeamProperties, spin_up_beam
 from sim.config import BeamConfig
 from sim.drives import Drive, SinusoidDrive, SpinUpDrive
-from sim.modal import simulate_modal
+from sim.models.modal import simulate_modal
 
 
 def _run(

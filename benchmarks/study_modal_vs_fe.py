@@ -5,7 +5,7 @@
 Rig beam, paper drive (Eq. 53) at full, half and quarter stroke, a0 = a1 = 0.1, 4 s from
 rest at 400 Hz; the maximum tip difference over the last two cycles relative to the
 largest tip deflection there, for the linear modal model (6 modes, damping with the
-tangent K_T and with the elastic K), the third-order modal model, and sim.fe's 'corot'
+tangent K_T and with the elastic K), the third-order modal model, and sim.models.fe's 'corot'
 beam (4 elements). Slow: the finite elements take about a minute per run.
 """
 
@@ -16,9 +16,9 @@ import numpy as np
 from sim.beam import BeamProperties
 from sim.config import BeamConfig
 from sim.drives import SinusoidDrive
-from sim.fe import simulate_fe
-from sim.modal import simulate_modal
-from sim.modal_nonlinear import simulate_modal_nonlinear
+from sim.models.fe import simulate_fe
+from sim.models.modal import simulate_modal
+from sim.models.modal_nonlinear import simulate_modal_nonlinear
 
 
 def main() -> None:

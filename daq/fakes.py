@@ -17,7 +17,7 @@ from types import TracebackType
 
 import numpy as np
 
-from daq.calibration import bridge_volts_from_strain, pot_volts_from_angle
+from daq.bridge import bridge_volts_from_strain, pot_volts_from_angle
 from daq.clock import Clock, MonotonicClock
 from daq.config import DaqConfig, GaugeConfig, PotentiometerConfig
 from daq.errors import DeviceError, DeviceTimeoutError

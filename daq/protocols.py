@@ -1,7 +1,7 @@
 """Device interfaces: what the capture loop needs from a strain DAQ and a camera.
 
-Real drivers (``daq.nidaq``, ``daq.opencv_camera``) and fakes (``daq.fakes``) implement
-these; the capture loop only ever sees the Protocol.
+Real drivers (``daq.drivers.nidaq``, ``daq.drivers.opencv_camera``) and fakes
+(``daq.fakes``) implement these; the capture loop only ever sees the Protocol.
 """
 
 from __future__ import annotations

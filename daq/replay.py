@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 
 from daq.clock import Clock, MonotonicClock
-from daq.log_format import TOPIC_CAMERA_INFO, TOPIC_EVENTS, TOPIC_IMAGE, TOPIC_SAMPLES, TOPICS
-from daq.log_reader import iter_frames, read_run
+from daq.log.format import TOPIC_CAMERA_INFO, TOPIC_EVENTS, TOPIC_IMAGE, TOPIC_SAMPLES, TOPICS
+from daq.log.reader import iter_frames, read_run
 from daq.records import Event, Frame, SampleBlock
 
 Record = SampleBlock | Frame | Event

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from daq.antialias import AntiAliasDecimator, AntiAliasDesign
-from daq.calibration import angle_from_pot_volts, strain_from_bridge_volts
+from daq.bridge import angle_from_pot_volts, strain_from_bridge_volts
 from daq.config import GaugeConfig, PotentiometerConfig
 from daq.records import N_CHANNELS, RawBlock, SampleBlock
 

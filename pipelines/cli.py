@@ -15,8 +15,8 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from pipelines import __version__
+from pipelines.blas_threads import limit_blas_threads
 from pipelines.errors import BeambenchError
-from pipelines.threads import limit_blas_threads
 
 COMMANDS = (
     "demo",

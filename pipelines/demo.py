@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from pipelines.capture import capture_run
-from pipelines.process import Processed, process_run, write_processed
-from pipelines.report import write_report
-from pipelines.review import stream_processed
+from pipelines.acquire.capture import capture_run
+from pipelines.acquire.synthetic import CAMERA_CLOCK_OFFSET_S, SyntheticDevices, build_synthetic
+from pipelines.process.run import Processed, process_run, write_processed
+from pipelines.review.overlays import stream_processed
+from pipelines.review.report import write_report
+from pipelines.review.viewer import open_viewer
 from pipelines.rig import Rig
-from pipelines.synthetic import CAMERA_CLOCK_OFFSET_S, SyntheticDevices, build_synthetic
-from pipelines.viewer import open_viewer
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pipelines.demo import capture_synthetic
-from pipelines.process import process_run
+from pipelines.process.run import process_run
 from pipelines.rig import load_rig
 
 HERE = Path(__file__).resolve().parent

@@ -2,8 +2,8 @@
 
 Each scene takes the bench's configuration dataclasses (``sim.config``) and returns a
 :class:`SceneRun`: the :class:`SimResult` and the scene's extra numbers. The finite-element
-and automatic models live in ``sim.fe`` and ``sim.auto``; when one of them is missing the
-scene raises :class:`ModelNotAvailable` rather than substituting another model.
+and automatic models live in ``sim.models.fe`` and ``sim.model_choice``; when one of them is
+missing the scene raises :class:`ModelNotAvailable` rather than substituting another model.
 """
 
 from __future__ import annotations
@@ -34,11 +34,11 @@ from sim.four_bar import (
     PAPER_ROCKER_MIN_RAD,
     FourBar,
 )
-from sim.modal import ModalModel, modal_result, simulate_modal
-from sim.modal_nonlinear import simulate_modal_nonlinear
+from sim.models.modal import ModalModel, modal_result, simulate_modal
+from sim.models.modal_nonlinear import simulate_modal_nonlinear
+from sim.models.rigid import simulate_rigid
 from sim.modes import clamped_free_eigenvalues, mode_shapes, natural_frequencies_rad_s
 from sim.result import SimResult
-from sim.rigid import simulate_rigid
 from sim.statics import solve_static_elastica, solve_static_modal
 
 FloatArray = NDArray[np.float64]
@@ -88,12 +88,12 @@ def _dynamic(
         )
     kw: dict[str, Any]
     if model == "fe":
-        from sim.fe import simulate_fe
+        from sim.models.fe import simulate_fe
 
         kw = {} if rtol is None else {"rtol": rtol}
         return simulate_fe(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
     if model == "auto":
-        from sim.auto import simulate_auto
+        from sim.model_choice import simulate_auto
 
         kw = {} if rtol is None else {"tol": rtol}
         return simulate_auto(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
@@ -166,7 +166,7 @@ def static(
     """Equilibrium under a tip weight ``mass_kg * g`` acting toward -lateral (Table 2).
 
     ``modal``: linear, ``n_modes`` modes (tip within 1e-4 of PL^3/3EI at 10 modes);
-    ``fe``: geometrically nonlinear finite elements (``sim.fe.solve_static_fe``);
+    ``fe``: geometrically nonlinear finite elements (``sim.models.fe.solve_static_fe``);
     ``auto``: the exact elastica (nonlinear, closed form); ``rigid``: no deflection.
     """
     if not math.isfinite(mass_kg) or mass_kg < 0.0:
@@ -176,7 +176,7 @@ def static(
     if model == "modal":
         res = solve_static_modal(props, force, n_modes=n_modes, gauge_positions_m=gauge_positions_m)
     elif model == "fe":
-        from sim.fe import solve_static_fe
+        from sim.models.fe import solve_static_fe
 
         res = solve_static_fe(props, force, gauge_positions_m=gauge_positions_m)
     elif model == "auto":

@@ -29,10 +29,10 @@ from scipy.optimize import brentq
 from scipy.special import ellipeinc, ellipj, ellipkinc
 
 from sim.beam import BeamProperties
-from sim.modal import station_foreshortening_matrices
+from sim.models.modal import station_foreshortening_matrices
+from sim.models.rigid import check_non_negative
 from sim.modes import modal_integrals, mode_shapes
 from sim.result import SimResult
-from sim.rigid import check_non_negative
 
 FloatArray = NDArray[np.float64]
 

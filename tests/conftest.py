@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from pipelines.threads import limit_blas_threads
+from pipelines.blas_threads import limit_blas_threads
 
 
 def pytest_configure(config: pytest.Config) -> None:

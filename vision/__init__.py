@@ -3,7 +3,7 @@ extraction, hub angle and deflection, and the scene renderer. numpy/scipy/OpenCV
 only; imports neither ``sim`` nor ``daq``."""
 
 from vision.calibration import Calibration, load_calibration, plane_to_image_px
-from vision.decode import decode
+from vision.codec import decode
 from vision.measure import FrameMeasurement, Measurer
 from vision.registration import (
     calibration_from_registration,

@@ -11,7 +11,7 @@ Methods
     polynomial in the hub frame; the centre line is their mean.
 ``"paper"``
     The paper's chain (seed 000 §4): whole-frame rectification with the homography,
-    3x3 mean filter, Prewitt edges, 5x1 boxcar, first moments (:mod:`vision.paper`).
+    3x3 mean filter, Prewitt edges, 5x1 boxcar, first moments (:mod:`vision.paper_chain`).
 """
 
 from __future__ import annotations
@@ -186,7 +186,7 @@ class Measurer:
             return self._fail("blank frame (no contrast)")
         try:
             if self.method == "paper":
-                from vision.paper import measure_paper
+                from vision.paper_chain import measure_paper
 
                 return measure_paper(self, image_gray)
             return self._measure_default(image_gray)

@@ -1,7 +1,7 @@
 """beambench bench: speed against error, one module per target.
 
-``pipelines.bench_sim``, ``pipelines.bench_vision``, ``pipelines.bench_daq`` and
-``pipelines.bench_process`` each provide ``run(quick: bool) -> int`` and print their
+``pipelines.bench.sim``, ``pipelines.bench.vision``, ``pipelines.bench.daq`` and
+``pipelines.bench.process`` each provide ``run(quick: bool) -> int`` and print their
 table on stdout.
 """
 
@@ -21,5 +21,5 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    module = importlib.import_module(f"pipelines.bench_{args.target}")
+    module = importlib.import_module(f"pipelines.bench.{args.target}")
     return int(module.run(quick=args.quick))

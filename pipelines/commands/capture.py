@@ -39,9 +39,9 @@ def camera_info_from_rig(rig: Rig) -> dict[str, Any]:
 
 def hardware_devices(rig: Rig) -> tuple[Any, Any, dict[str, Any]]:
     """NI-DAQmx strain DAQ and an OpenCV camera (device, video file or stills folder)."""
+    from daq.drivers.nidaq import NiStrainDaq, check_nidaqmx
+    from daq.drivers.opencv_camera import open_camera
     from daq.errors import DriverUnavailableError
-    from daq.nidaq import NiStrainDaq, check_nidaqmx
-    from daq.opencv_camera import open_camera
 
     try:
         check_nidaqmx()
@@ -60,7 +60,7 @@ def hardware_devices(rig: Rig) -> tuple[Any, Any, dict[str, Any]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pipelines.capture import capture_run
+    from pipelines.acquire.capture import capture_run
 
     rig = rig_from_args(args)
     if not math.isfinite(args.duration) or args.duration <= 0:
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
             f"--duration must be a positive number of seconds, got {args.duration}"
         )
     if args.backend == "fake":
-        from pipelines.synthetic import make_synthetic_devices
+        from pipelines.acquire.synthetic import make_synthetic_devices
 
         daq_device, camera, camera_info = make_synthetic_devices(
             rig, args.duration, realtime=args.realtime, seed=rig.synthetic.seed

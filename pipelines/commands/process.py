@@ -50,7 +50,7 @@ def check_output_folder(path: Path, option: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pipelines.process import process_run, write_processed
+    from pipelines.process.run import process_run, write_processed
     from pipelines.rig import load_rig
 
     log_path = Path(args.log)
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         raise BeambenchError(f"--sim-tol must be in (0, 0.5), got {args.sim_tol}")
     rig = load_rig(args.rig) if args.rig else None
     cal = Path(args.calibration) if args.calibration else None
-    from pipelines.process import SIM_TOL
+    from pipelines.process.run import SIM_TOL
 
     processed = process_run(
         log_path,
@@ -86,9 +86,9 @@ def run(args: argparse.Namespace) -> int:
 def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace) -> None:
     import time
 
-    from pipelines.process import Processed
-    from pipelines.review import stream_processed
-    from pipelines.viewer import open_viewer
+    from pipelines.process.run import Processed
+    from pipelines.review.overlays import stream_processed
+    from pipelines.review.viewer import open_viewer
 
     assert isinstance(processed, Processed)
     t0 = time.perf_counter()
@@ -108,7 +108,7 @@ def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace
 
 
 def print_summary(processed: object, out: Path) -> None:
-    from pipelines.process import Processed
+    from pipelines.process.run import Processed
 
     assert isinstance(processed, Processed)
     ds = processed.results

@@ -1,7 +1,7 @@
 """beambench replay: stream a raw run log to Rerun, without processing.
 
 Samples (rocker angle and strains), camera frames (as recorded, no overlays) and events
-go to the same entity paths and timelines as a processed run (``pipelines.viewer``), on
+go to the same entity paths and timelines as a processed run (``pipelines.review.viewer``), on
 seconds since the first DAQ sample (the processed run's time base).
 """
 
@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from daq.log import RunLog
     from daq.records import Frame
     from pipelines.progress import Progress
-    from pipelines.viewer import RunViewer
+    from pipelines.review.viewer import RunViewer
 
 HELP = "stream a raw run log to Rerun without processing"
 
@@ -86,7 +86,7 @@ def replay_log(
     Parameters
     ----------
     log_path : the MCAP run log.
-    viewer : where to send it (see ``pipelines.viewer.open_viewer``).
+    viewer : where to send it (see ``pipelines.review.viewer.open_viewer``).
     speed : replay at ``speed`` times real time; None sends everything at once.
     sleep, monotonic : the clock used for pacing (injectable for tests).
     progress : draw a progress bar (default: only on a terminal).
@@ -178,7 +178,7 @@ def _default_rrd(log_path: Path) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from daq.errors import LogError
-    from pipelines.viewer import open_viewer
+    from pipelines.review.viewer import open_viewer
 
     log_path = Path(args.log)
     speed = parse_speed(args.speed)

@@ -41,7 +41,7 @@ def check_out_dir(path: str) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     out = check_out_dir(args.out)
-    from pipelines.reproduce import run_reproduce
+    from pipelines.reproduce.report import run_reproduce
 
     start = time.perf_counter()
     report = run_reproduce(out)

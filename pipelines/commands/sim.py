@@ -11,11 +11,16 @@ from typing import Any
 
 from pipelines.commands._common import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
+from pipelines.results.sim_dataset import (
+    check_output_path,
+    modes_dataset,
+    sim_dataset,
+    write_dataset,
+)
 from pipelines.rig import Rig
-from pipelines.sim_output import check_output_path, modes_dataset, sim_dataset, write_dataset
 from sim import scenes
 from sim.beam import BeamProperties
-from sim.ltv import SolverError
+from sim.solvers.linear_radau import SolverError
 from sim.statics import table2_comparison
 
 HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-body, modes, linkage)"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from daq.calibration import angle_from_pot_volts, strain_from_bridge_volts
+from daq.bridge import angle_from_pot_volts, strain_from_bridge_volts
 from daq.clock import ManualClock
 from daq.config import DaqConfig, GaugeConfig, PotentiometerConfig
 from daq.errors import DeviceTimeoutError

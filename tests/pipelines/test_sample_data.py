@@ -31,7 +31,7 @@ def test_the_sample_run_processes_to_its_expected_numbers(
 ) -> None:
     import importlib.util
 
-    from pipelines.process import process_run
+    from pipelines.process.run import process_run
 
     spec = importlib.util.spec_from_file_location("make_sample", SAMPLE / "make_sample.py")
     assert spec is not None and spec.loader is not None

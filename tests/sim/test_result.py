@@ -8,7 +8,7 @@ import pytest
 from sim.beam import BeamProperties
 from sim.config import BeamConfig
 from sim.drives import FixedDrive
-from sim.modal import simulate_modal
+from sim.models.modal import simulate_modal
 
 
 def test_a_held_start_repeats_the_first_state_and_rows_select() -> None:

@@ -12,7 +12,7 @@ from sim import scenes
 from sim.beam import BeamProperties
 from sim.config import BeamConfig, DampingConfig, DriveConfig, LinkageConfig
 from sim.drives import SinusoidDrive
-from sim.modal import simulate_modal
+from sim.models.modal import simulate_modal
 
 GAUGES = (0.005, 0.204, 0.403, 0.603)
 

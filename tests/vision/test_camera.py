@@ -90,7 +90,7 @@ def test_checkerboard_calibration_recovers_the_focal_length() -> None:
 
     from vision.camera import calibrate_checkerboard
     from vision.config import CameraPoseConfig
-    from vision.pose import camera_extrinsics, ideal_from_plane
+    from vision.synthetic.pose import camera_extrinsics, ideal_from_plane
 
     sq_px, cols, rows = 40, 10, 7  # squares; 9 x 6 inner corners
     board = np.kron((np.indices((rows, cols)).sum(axis=0) % 2), np.ones((sq_px, sq_px)))

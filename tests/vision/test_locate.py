@@ -8,7 +8,7 @@ import numpy as np
 
 from vision import Measurer
 from vision.locate import find_strip, locate, profile_levels, search_circles
-from vision.render import render_frame
+from vision.synthetic.render import render_frame
 
 
 def test_premapped_search_circles_change_nothing_and_hub_centres_lie_on_its_axis(

@@ -13,7 +13,7 @@ from vision import (
     plane_to_image_px,
 )
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.render import BeamPose, Clutter, encode, render_frame
+from vision.synthetic.render import BeamPose, Clutter, encode, render_frame
 
 
 def _errors(m, tr) -> tuple[float, float, float]:
@@ -130,7 +130,7 @@ def test_hard_view_with_distortion_jpeg_and_noise(vt) -> None:
         lighting_gradient=0.4,
         vignetting=0.3,
     )
-    from vision.decode import decode
+    from vision.codec import decode
 
     frame = render_frame(spec, [vt.bent(math.radians(330), 0.14)])
     assert frame.truth.tip_lateral_m > 0.075  # an 80 mm class deflection

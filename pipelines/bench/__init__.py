@@ -1,0 +1,2 @@
+"""``beambench bench``: speed against error for each target, with the competitor in the
+same run (the paper's image chain, Exudyn's ANCF beam)."""

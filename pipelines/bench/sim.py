@@ -1,0 +1,284 @@
+"""``beambench bench sim``: simulator speed against error.
+
+For each scene a converged reference is computed here, in the same process: the exact
+finite elements (``fe-corot``) with more elements and a tight integrator tolerance than any
+candidate; it is checked by a second reference at a 30x looser tolerance (their difference
+is printed as the reference's own error). The table gives, per model and setting, the wall
+time of the solve per simulated second and the maximum tip-lateral error over the last three
+drive cycles (reciprocating) or the whole run (spin-up), absolute and relative to the
+largest reference tip deflection in that window.
+
+If Exudyn is installed (the ``peers`` extra), its ANCF cable (:mod:`pipelines.bench.peers_exudyn`)
+runs on the same scenes in the same process. Its damping is strain-rate (Kelvin-Voigt)
+damping, not Eq. 28's ``a0 M + a1 K_T``, so on the damped scene its error is taken against a
+reference of its own damping law (beambench's FE with that law, same elements and
+tolerance as the main reference) and, in a column of its own, against the Eq. 28 reference;
+the gap between the two laws is printed below the table.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sim.beam import BeamProperties, spin_up_beam
+from sim.config import BeamConfig, DampingConfig, DriveConfig
+from sim.drives import SinusoidDrive, SpinUpDrive
+from sim.models.fe import simulate_fe
+from sim.result import SimResult
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Row:
+    scene: str
+    model: str
+    setting: str
+    wall_per_sim_s: float
+    max_error_m: float
+    rel_error: float
+    rel_error_eq28: float = math.nan  # Exudyn rows on a damped scene: against Eq. 28
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    beam: BeamProperties
+    drive: Any
+    t_s: np.ndarray
+    window: np.ndarray  # bool mask of the samples the error is taken over
+    damping: tuple[float, float]
+
+
+#: The setting of the row that shows 1e-6 on the reciprocating scene.
+_ROW_1E6 = "8 elements, rtol 1e-6"
+
+
+def _scenes(quick: bool) -> list[Scene]:
+    rig = BeamProperties.from_config(BeamConfig())
+    drive_cfg, damp = DriveConfig(), DampingConfig()
+    paper = SinusoidDrive(drive_cfg.paper_amplitude_rad, drive_cfg.paper_omega_rad_s)
+    period = 2.0 * math.pi / drive_cfg.paper_omega_rad_s
+    dur = 1.5 * period if quick else 5.0
+    t = np.linspace(0.0, dur, int(dur * 200) + 1)
+    window = t >= dur - (0.5 if quick else 3.0) * period
+    scenes = [
+        Scene("reciprocating", rig, paper, t, window, (damp.a0_per_s, damp.a1_s)),
+    ]
+    for omega in (4.0,) if quick else (4.0, 10.0):
+        dur_s = 5.0 if quick else 20.0
+        ts = np.linspace(0.0, dur_s, int(dur_s * 20) + 1)
+        scenes.append(
+            Scene(
+                f"spin-up {omega:g} rad/s",
+                spin_up_beam(),
+                SpinUpDrive(omega),
+                ts,
+                np.ones(ts.size, bool),
+                (0.0, 0.0),
+            )
+        )
+    return scenes
+
+
+def _candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult]]]:
+    from sim.models.modal import simulate_modal
+
+    def modal(n: int, rtol: float) -> Callable[[Scene], SimResult]:
+        return lambda s: simulate_modal(
+            s.beam, s.drive, s.t_s, n_modes=n, a0_per_s=s.damping[0], a1_s=s.damping[1],
+            rtol=rtol, atol=rtol * 1e-3,
+        )  # fmt: skip
+
+    def fe(form: str, n: int, rtol: float, method: str = "auto") -> Callable[[Scene], SimResult]:
+        atol = rtol if method == "radau5" else rtol * 1e-3
+        return lambda s: simulate_fe(
+            s.beam, s.drive, s.t_s, n_elements=n, formulation=form, a0_per_s=s.damping[0],
+            a1_s=s.damping[1], rtol=rtol, atol=atol, method=method,
+        )  # fmt: skip
+
+    def modal_nl(n: int, rtol: float) -> Callable[[Scene], SimResult]:
+        from sim.models.modal_nonlinear import simulate_modal_nonlinear
+
+        return lambda s: simulate_modal_nonlinear(
+            s.beam, s.drive, s.t_s, n_modes=n, a0_per_s=s.damping[0], a1_s=s.damping[1],
+            rtol=rtol, atol=rtol * 1e-3,
+        )  # fmt: skip
+
+    def auto(tol: float) -> Callable[[Scene], SimResult]:
+        from sim.model_choice import simulate_auto
+
+        return lambda s: simulate_auto(
+            s.beam, s.drive, s.t_s, tol=tol, a0_per_s=s.damping[0], a1_s=s.damping[1]
+        )
+
+    out = [
+        ("modal", "4 modes, rtol 1e-6", modal(4, 1e-6)),
+        ("modal-nonlinear", "4 modes, rtol 1e-6", modal_nl(4, 1e-6)),
+        ("fe-corot", "2 elements, rtol 1e-6", fe("corot", 2, 1e-6)),
+        ("fe-corot radau5", "3 elements, rtol 1e-4", fe("corot", 3, 1e-4, "radau5")),
+        ("auto", "tol 1e-3", auto(1e-3)),
+    ]
+    if not quick:
+        out += [
+            ("modal", "6 modes, rtol 1e-9", modal(6, 1e-9)),
+            # the 1e-6 row: against the 12-element reference (its own error printed below)
+            ("fe-corot radau5", _ROW_1E6, fe("corot", 8, 1e-6, "radau5")),
+            ("fe-corot radau5", "2 elements, rtol 3e-4", fe("corot", 2, 3e-4, "radau5")),
+            ("fe-corot radau5", "2 elements, rtol 1e-4", fe("corot", 2, 1e-4, "radau5")),
+            ("fe-corot radau5", "4 elements, rtol 1e-5", fe("corot", 4, 1e-5, "radau5")),
+            ("fe-corot radau5", "6 elements, rtol 1e-6", fe("corot", 6, 1e-6, "radau5")),
+            ("fe-corot", "2 elements, rtol 1e-8", fe("corot", 2, 1e-8)),
+            ("fe-corot", "4 elements, rtol 1e-8", fe("corot", 4, 1e-8)),
+            ("fe-flxdyn", "2 elements, rtol 1e-6", fe("flxdyn", 2, 1e-6)),
+            ("fe-corot radau5", "5 elements, rtol 1e-4", fe("corot", 5, 1e-4, "radau5")),
+            ("auto", "tol 1e-2", auto(1e-2)),
+            ("auto", "tol 1e-4", auto(1e-4)),
+        ]
+    return out
+
+
+def _reference_elements(scene: Scene, quick: bool) -> int:
+    # damped full run: 12 elements, so that the 8-element row can show 1e-6 (the pair gives
+    # the reference's own spatial error by Richardson, displacements converging as h^4)
+    return 4 if quick else (12 if scene.damping[1] > 0.0 else 6)
+
+
+def _reference(scene: Scene, quick: bool, rtol: float, n: int | None = None) -> SimResult:
+    n = _reference_elements(scene, quick) if n is None else n
+    return simulate_fe(
+        scene.beam, scene.drive, scene.t_s, n_elements=n, a0_per_s=scene.damping[0],
+        a1_s=scene.damping[1], rtol=rtol, atol=rtol * 1e-3,
+    )  # fmt: skip
+
+
+def _error(res: SimResult, ref: SimResult, window: np.ndarray) -> tuple[float, float]:
+    err = float(np.max(np.abs(res.tip_lateral_m[window] - ref.tip_lateral_m[window])))
+    return err, err / float(np.max(np.abs(ref.tip_lateral_m[window])))
+
+
+def _exudyn_settings(scene: Scene, quick: bool) -> list[tuple[int, float]]:
+    """(elements, step) of the Exudyn rows: steps divide the output interval."""
+    if scene.damping[1] > 0.0:
+        return (
+            [(2, 0.005)]
+            if quick
+            else [(2, 0.005), (2, 0.0025), (4, 0.0025), (4, 0.001), (8, 0.0005)]
+        )
+    return [(4, 0.01)] if quick else [(4, 0.01), (8, 0.005), (16, 0.0025)]
+
+
+def _exudyn_rows(
+    scene: Scene, quick: bool, ref: SimResult, rtol_ref: float, notes: list[str]
+) -> list[Row]:
+    """Exudyn's rows for one scene (errors against its own damping law's reference)."""
+    from pipelines.bench.peers_exudyn import simulate_exudyn, simulate_fe_kelvin_voigt
+
+    duration = float(scene.t_s[-1] - scene.t_s[0])
+    own = ref
+    damped = scene.damping[1] > 0.0
+    if damped:
+        n_own = 4 if quick else 8
+        own = simulate_fe_kelvin_voigt(
+            scene.beam, scene.drive, scene.t_s, n_elements=n_own, a1_s=scene.damping[1],
+            rtol=rtol_ref, atol=rtol_ref * 1e-3,
+        )  # fmt: skip
+        gap = _error(own, ref, scene.window)[1]
+        notes.append(
+            f"damping law ({scene.name}): beambench's FE with Exudyn's strain-rate damping "
+            f"(a1 EA, a1 EI, no a0; {n_own} el., rtol {rtol_ref:g}) differs from Eq. 28 by "
+            f"{gap:.2e} of the tip; Exudyn's errors are taken against it"
+        )
+    rows = []
+    for n, h in _exudyn_settings(scene, quick):
+        res = simulate_exudyn(
+            scene.beam, scene.drive, scene.t_s, n_elements=n, step_s=h, a1_s=scene.damping[1]
+        )
+        err, rel = _error(res, own, scene.window)
+        eq28 = _error(res, ref, scene.window)[1] if damped else math.nan
+        rows.append(
+            Row(scene.name, "exudyn ANCF", f"{n} elements, h {h:g}",
+                res.wall_time_s / duration, err, rel, eq28)
+        )  # fmt: skip
+    return rows
+
+
+def table(quick: bool) -> tuple[list[Row], dict[str, float]]:
+    """Compute the rows and, per scene, the reference's own relative error estimate."""
+    rows, ref_err, _ = table_with_notes(quick)
+    return rows, ref_err
+
+
+def table_with_notes(quick: bool) -> tuple[list[Row], dict[str, float], list[str]]:
+    """:func:`table` and the lines printed below it (reference checks, Exudyn)."""
+    from pipelines.bench.peers_exudyn import available
+    from pipelines.progress import Progress
+
+    rows: list[Row] = []
+    ref_err: dict[str, float] = {}
+    notes: list[str] = []
+    scenes = _scenes(quick)
+    candidates = _candidates(quick)
+    bar = Progress("bench sim", total=len(scenes) * (len(candidates) + 2))
+    for scene in scenes:
+        # undamped spin-up: Radau must follow the stiff axial modes at tight tolerances,
+        # so its reference is looser (and checked like the others)
+        spin = scene.damping[1] == 0.0
+        # damped: rtol 1e-10, since at 1e-9 the 12-element reference is itself 1.3e-6 off
+        # (measured against 1e-10), too much for the 1e-6 row (1e-10 costs ~3 s per sim s)
+        rtol_ref = 1e-7 if spin else 1e-10
+        ref = _reference(scene, quick, rtol_ref)
+        bar.update(1)
+        check = _reference(scene, quick, rtol_ref * 30.0)
+        bar.update(1)
+        ref_err[scene.name] = _error(check, ref, scene.window)[1]
+        duration = float(scene.t_s[-1] - scene.t_s[0])
+        rows.append(
+            Row(scene.name, "reference fe-corot", f"{ref.settings['n_elements']} elements, "
+                f"rtol {rtol_ref:g}", ref.wall_time_s / duration, 0.0, 0.0)
+        )  # fmt: skip
+        for model, setting, run_model in candidates:
+            bar.update(1)
+            res = run_model(scene)
+            err, rel = _error(res, ref, scene.window)
+            rows.append(Row(scene.name, model, setting, res.wall_time_s / duration, err, rel))
+            if setting == _ROW_1E6 and ref.settings["n_elements"] == 12:
+                # h^4: e12 = (e8 - e12) (8/12)^4 / (1 - (8/12)^4)
+                r4 = (8.0 / 12.0) ** 4
+                notes.append(
+                    f"reference check ({scene.name}): spatial error of the 12-element "
+                    f"reference by Richardson from the 8-element row: {rel * r4 / (1 - r4):.1e}"
+                )
+        if available():
+            rows += _exudyn_rows(scene, quick, ref, rtol_ref, notes)
+    bar.close()
+    return rows, ref_err, notes
+
+
+def run(quick: bool) -> int:
+    """Print the speed-against-error table; returns the exit status."""
+    from pipelines.bench.peers_exudyn import available
+
+    rows, ref_err, notes = table_with_notes(quick)
+    print("scene                 | model              | setting                | s per sim s "
+          "| max tip error (m) | relative | vs Eq. 28")  # fmt: skip
+    print("-" * 115)
+    for r in rows:
+        eq28 = f"{r.rel_error_eq28:.2e}" if math.isfinite(r.rel_error_eq28) else ""
+        print(
+            f"{r.scene:21s} | {r.model:18s} | {r.setting:22s} | {r.wall_per_sim_s:11.4f} | "
+            f"{r.max_error_m:17.3e} | {r.rel_error:.2e} | {eq28}"
+        )
+    for name, e in ref_err.items():
+        print(f"reference check ({name}): 30x looser rtol changes it by {e:.1e} relative")
+    for line in notes:
+        print(line)
+    if not available():
+        print("exudyn: not installed (optional peer), no side-by-side row")
+    return 0

@@ -1,0 +1,320 @@
+"""Processing a run: log -> frames measured -> strains reconstructed -> time aligned ->
+simulated from the measured hub angle -> compared -> results file (+ Rerun).
+
+Every step is a function of arrays; ``process_run`` only wires them together.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from daq.log import LogError, iter_frames, read_run
+from pipelines import __version__
+from pipelines.errors import BeambenchError
+from pipelines.process.alignment import Alignment, estimate_offset
+from pipelines.process.frames import MeasuredFrame, as_arrays, measure_frames
+from pipelines.process.free_decay import find_free_decay, simulate_release
+from pipelines.process.strain_shape import StrainShape, modal_curvature_shape
+from pipelines.progress import Progress
+from pipelines.results.schema import make_results, write_results
+from pipelines.rig import Rig, rig_from_json
+from sim.beam import BeamProperties
+from sim.drives import TraceDrive
+from sim.modes import mode_shapes
+from sim.result import SimResult
+from vision import Calibration, calibration_from_registration, decode, load_calibration
+
+log = logging.getLogger(__name__)
+
+# The simulation starts from rest at the first sample; with the paper's damping the
+# start-up transient is gone within a second (first mode overdamped, zeta ~ 1.2).
+SETTLE_S = 1.0
+STRAIN_SHAPE_MODES = 3
+# Relative tip error the simulation aims at when compared with a run. The comparison is
+# no better than the measurements and the model's inputs: gauge factors (+-1 %), the
+# damping coefficients a0 = a1 = 0.1 (fitted, not measured) and the image tip (~0.05 mm
+# on a ~45 mm swing). At 2 % ``auto`` picks the linear modal model with stiffening
+# (~0.01 s per simulated second; ~1 % from the exact beam at the bench's stroke).
+# ``--sim-tol 1e-4`` asks for the exact beam.
+SIM_TOL = 2e-2
+
+
+@dataclass
+class Timings:
+    """Wall time of each step [s]."""
+
+    read_s: float = 0.0
+    calibrate_s: float = 0.0
+    measure_s: float = 0.0
+    align_s: float = 0.0
+    strain_s: float = 0.0
+    damping_s: float = 0.0
+    simulate_s: float = 0.0
+    model_wait_s: float = 0.0
+    write_s: float = 0.0
+    viewer_s: float = 0.0
+
+    def as_dict(self) -> dict[str, float]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class Processed:
+    """Everything a processed run produced (the results dataset and the pieces the
+    viewer draws)."""
+
+    results: xr.Dataset
+    frames: list[MeasuredFrame]
+    calibration: Calibration
+    alignment: Alignment
+    sim: SimResult
+    strain_shape: StrainShape
+    timings: Timings = field(default_factory=Timings)
+    # the log's event records, so the viewer need not read the log a second time
+    events: list[Any] = field(default_factory=list)
+
+
+def load_log(path: Path) -> Any:
+    try:
+        return read_run(path)
+    except LogError as exc:
+        raise BeambenchError(str(exc)) from None
+    except FileNotFoundError:
+        raise BeambenchError(f"{path}: no such file") from None
+
+
+def calibrate(run: Any, rig: Rig, calibration_path: Path | None) -> Calibration:
+    """The calibration file if given, else the registration object detected in the
+    first frame that shows it (with the intrinsics recorded in the log)."""
+    if calibration_path is not None:
+        try:
+            return load_calibration(calibration_path)
+        except FileNotFoundError:
+            raise BeambenchError(f"{calibration_path}: no such file") from None
+        except ValueError as exc:
+            raise BeambenchError(f"{calibration_path}: {exc}") from None
+    camera_matrix = distortion = None
+    info = run.camera_info
+    if info:
+        camera_matrix = np.asarray(info["K"], float).reshape(3, 3)
+        distortion = np.asarray(info.get("D", ()), float)
+    reasons = []
+    for k, frame in enumerate(iter_frames(run.path)):
+        if k >= 10:
+            break
+        try:
+            return calibration_from_registration(
+                decode(frame.data),
+                rig.registration,
+                camera_matrix=camera_matrix,
+                distortion=distortion,
+                beam_length_m=rig.beam.length_m,
+                beam_width_m=rig.beam.width_m,
+            )
+        except ValueError as exc:
+            reasons.append(str(exc))
+    why = reasons[0] if reasons else "the log has no camera frames"
+    raise BeambenchError(
+        f"{run.path}: no calibration given and the registration object was not found "
+        f"in the first frames ({why}); pass --calibration CAL.json"
+    )
+
+
+def strain_shape_for(rig: Rig, stations_m: np.ndarray | None = None) -> StrainShape:
+    beam = rig.beam
+    return modal_curvature_shape(
+        rig.gauges.positions_m,
+        beam.length_m,
+        beam.surface_offset_m,
+        lambda x, i: mode_shapes(x, beam.length_m, i, derivative=2)[:, i - 1],
+        n_modes=STRAIN_SHAPE_MODES,
+        stations_m=stations_m,
+    )
+
+
+def simulate_measured(
+    rig: Rig,
+    t_s: np.ndarray,
+    rocker_rad: np.ndarray,
+    model: str,
+    tol: float = SIM_TOL,
+) -> SimResult:
+    """The beam driven by the measured hub angle (potentiometer trace); ``tol`` is the
+    relative tip error ``auto`` aims at."""
+    good = np.isfinite(rocker_rad)
+    drive = TraceDrive(t_s[good], rocker_rad[good])
+    beam = BeamProperties.from_config(rig.beam)
+    kwargs: dict[str, Any] = {
+        "a0_per_s": rig.damping.a0_per_s,
+        "a1_s": rig.damping.a1_s,
+        "gauge_positions_m": rig.gauges.positions_m,
+    }
+    if model == "modal":
+        from sim.models.modal import simulate_modal
+
+        return simulate_modal(beam, drive, t_s, n_modes=4, **kwargs)
+    if model == "fe":
+        from sim.models.fe import simulate_fe
+
+        return simulate_fe(beam, drive, t_s, **kwargs)
+    if model == "rigid":
+        from sim.models.rigid import simulate_rigid
+
+        return simulate_rigid(beam, drive, t_s, gauge_positions_m=rig.gauges.positions_m)
+    from sim.model_choice import simulate_auto
+
+    return simulate_auto(beam, drive, t_s, tol=tol, **kwargs)
+
+
+def _model_side(
+    rig: Rig,
+    t_s: np.ndarray,
+    rocker_angle_rad: np.ndarray,
+    strain: np.ndarray,
+    model: str,
+    sim_tol: float,
+) -> tuple[StrainShape, np.ndarray, Any, SimResult, tuple[float, float, float]]:
+    """What a run gives without its frames: the strain-based tip, the free decay (if the
+    run holds one) and the simulation. Returns them with the wall time of each step."""
+    t0 = time.perf_counter()
+    shape = strain_shape_for(rig)
+    tip_strain = shape.tip_lateral_m(strain)
+    t1 = time.perf_counter()
+    decay = find_free_decay(rig, t_s, rocker_angle_rad, strain)
+    t2 = time.perf_counter()
+    if decay is not None:
+        log.info(
+            "free decay from %.2f s: log decrement %.4f, zeta %.4f, a0 = a1 = %.3g",
+            decay.release_s,
+            decay.log_decrement,
+            decay.damping_ratio,
+            decay.a_simulated,
+        )
+        sim = simulate_release(rig, t_s, strain, decay)
+    else:
+        sim = simulate_measured(rig, t_s, rocker_angle_rad, model, sim_tol)
+    t3 = time.perf_counter()
+    return shape, tip_strain, decay, sim, (t1 - t0, t2 - t1, t3 - t2)
+
+
+def process_run(
+    log_path: Path,
+    *,
+    rig: Rig | None = None,
+    calibration_path: Path | None = None,
+    model: str = "auto",
+    sim_tol: float = SIM_TOL,
+    workers: int | None = None,
+) -> Processed:
+    timings = Timings()
+    t0 = time.perf_counter()
+    run = load_log(log_path)
+    if rig is None:
+        rig = rig_from_json(run.rig_json, source=f"{log_path} (rig record)")
+    samples = run.samples
+    if samples.t_ns.size < 10:
+        raise BeambenchError(f"{log_path}: the log holds only {samples.t_ns.size} DAQ samples")
+    t_s = (samples.t_ns - samples.t_ns[0]).astype(float) * 1e-9
+    t_zero_ns = int(samples.t_ns[0])
+    timings.read_s = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    calibration = calibrate(run, rig, calibration_path)
+    timings.calibrate_s = time.perf_counter() - t0
+
+    # The model side (strain shape, free-decay search, simulation) needs only the DAQ
+    # samples: it runs in a thread while the worker processes measure the frames, on the
+    # core that would otherwise idle through the simulation afterwards (the solver's time
+    # is then shared with the workers; its steps are timed inside the thread).
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="model") as side:
+        model_side = side.submit(
+            _model_side, rig, t_s, samples.rocker_angle_rad, samples.strain, model, sim_tol
+        )
+        t0 = time.perf_counter()
+        stations = tuple(float(x) for x in rig.gauges.positions_m)
+        with Progress("measure", total=run.frame_count) as bar:
+            frames = measure_frames(
+                iter_frames(log_path),
+                calibration,
+                stations_m=stations,
+                workers=workers,
+                progress=bar.update,
+            )
+        cols = as_arrays(frames)
+        timings.measure_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        shape, tip_strain, decay, sim, side_timings = model_side.result()
+        timings.model_wait_s = time.perf_counter() - t0
+    timings.strain_s, timings.damping_s, timings.simulate_s = side_timings
+
+    t0 = time.perf_counter()
+    frame_t_cam_s = (cols["t_ns"] - t_zero_ns).astype(float) * 1e-9
+    if decay is None:
+        alignment = estimate_offset(
+            frame_t_cam_s, cols["hub_angle_rad"], t_s, samples.rocker_angle_rad
+        )
+    else:
+        # the hub is still: the vibrating tip, seen by the camera and by the strains
+        alignment = estimate_offset(frame_t_cam_s, cols["tip_lateral_m"], t_s, tip_strain)
+    if alignment.ok:
+        frame_t_s = alignment.to_daq_time(frame_t_cam_s)
+    else:
+        log.warning("camera-to-DAQ alignment failed (%s); using the logged times", alignment.reason)
+        frame_t_s = frame_t_cam_s
+    timings.align_s = time.perf_counter() - t0
+
+    attrs = {
+        "source_log": str(log_path),
+        "rig_json": rig.to_json(),
+        "software_version": __version__,
+        "sim_model": sim.model,
+        "sim_settings": json.dumps(sim.settings, default=str),
+        "sim_wall_time_s": sim.wall_time_s,
+        "camera_to_daq_offset_s": alignment.offset_s if alignment.ok else math.nan,
+        "camera_clock_drift_ppm": alignment.drift_ppm if alignment.ok else math.nan,
+        "alignment": json.dumps(alignment.__dict__),
+        "calibration": calibration.to_json(),
+        "settle_time_s": SETTLE_S,
+        "strain_shape_basis": shape.basis,
+        "frames_failed": int(np.count_nonzero(~cols["ok"])),
+        "frames_total": len(frames),
+        "run_info": json.dumps(run.run_info, default=str),
+        "t_zero_ns": t_zero_ns,
+        **(decay.as_attrs() if decay is not None else {}),
+    }
+    results = make_results(
+        time_s=t_s,
+        rocker_angle_rad=samples.rocker_angle_rad,
+        strain=samples.strain,
+        gauge_m=np.asarray(rig.gauges.positions_m, float),
+        frame_time_s=frame_t_s,
+        hub_angle_image_rad=cols["hub_angle_rad"],
+        tip_lateral_m=cols["tip_lateral_m"],
+        tip_longitudinal_m=cols["tip_longitudinal_m"],
+        frame_ok=cols["ok"],
+        tip_lateral_strain_m=tip_strain,
+        sim_tip_lateral_m=sim.tip_lateral_m,
+        sim_strain=sim.strain,
+        attrs=attrs,
+        sim_tip_longitudinal_m=sim.tip_longitudinal_m,
+        hub_angle_sim_rad=sim.hub_angle_rad,
+        station_m=np.asarray(stations, float),
+        lateral_at_stations_image_m=cols["lateral_at_stations_m"],
+    )
+    return Processed(results, frames, calibration, alignment, sim, shape, timings, list(run.events))
+
+
+def write_processed(processed: Processed, out_path: Path) -> None:
+    t0 = time.perf_counter()
+    write_results(processed.results, out_path)
+    processed.timings.write_s = time.perf_counter() - t0

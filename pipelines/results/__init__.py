@@ -1,0 +1,2 @@
+"""The results file (schema, reading and writing, comparison metrics) and the dataset of
+a simulation on its own."""

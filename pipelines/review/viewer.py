@@ -1,0 +1,581 @@
+"""Rerun review of a run: camera frames with overlays, time series, Fig. 11, events.
+
+Follows the rerun-io examples: compute first, then log; one ``log_<stream>`` per
+source; hierarchical entity paths; ``send_columns`` for the high-rate series; a
+blueprint for the layout; a ``.rrd`` file so CI needs no viewer. ``rerun`` is imported
+only in ``pipelines/viewer*.py``.
+
+Timelines: ``time`` (duration, seconds on the run clock, i.e. since run start for a
+processed run) for everything, and ``frame`` (sequence) for camera frames.
+
+Entity paths::
+
+    /daq/rocker_angle              potentiometer angle (rad)
+    /daq/strain/g1 .. gN           measured strain (m/m)
+    /sim/strain/g1 .. gN           simulated strain (m/m)
+    /sim/tip_lateral               simulated lateral tip deflection (m)
+    /tip_lateral/image             lateral tip deflection from the images (m, points)
+    /tip_lateral/strain            ... reconstructed from the strains (m)
+    /camera/image                  encoded JPEG/PNG frames (not decoded here)
+    /camera/image/centreline ...   overlays in pixels, drawn on top of the image
+    /fig11/measured, /fig11/sim    Fig. 11: tip lateral (mm) against hub angle (deg)
+    /events                        run events as a text log; /events/frames: failed frames
+    /summary                       the error summary (markdown)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import uuid
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import rerun as rr
+import xarray as xr
+from numpy.typing import ArrayLike, NDArray
+
+from pipelines.results.schema import (
+    VARIABLES,
+    error_table,
+    fig11_frames_mask,
+    steady_state_mask,
+    summarise_errors,
+)
+from pipelines.review.layout import (
+    COLOUR_CENTRELINE,
+    COLOUR_HUB,
+    COLOUR_MEASURED,
+    COLOUR_RIGID,
+    COLOUR_SIM,
+    COLOUR_STRAIN,
+    COLOUR_TIP,
+    build_blueprint,
+    gauge_entity,
+)
+from pipelines.review.rrd import RrdEntity, rrd_entities
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+_URL_SCHEMES = ("rerun://", "rerun+http://", "rerun+https://")
+_MEDIA_TYPES = {"jpeg": "image/jpeg", "jpg": "image/jpeg", "png": "image/png"}
+
+# Event levels: foxglove.Log numbers (1 debug .. 5 fatal) or names.
+_LEVELS = {
+    0: "INFO",
+    1: "DEBUG",
+    2: "INFO",
+    3: "WARN",
+    4: "ERROR",
+    5: "CRITICAL",
+    "debug": "DEBUG",
+    "info": "INFO",
+    "warn": "WARN",
+    "warning": "WARN",
+    "error": "ERROR",
+    "fatal": "CRITICAL",
+    "critical": "CRITICAL",
+    "unknown": "INFO",
+}
+
+
+class EventLike(Protocol):
+    """What ``log_events`` needs of an event (``daq.log`` records have these)."""
+
+    @property
+    def t_ns(self) -> int: ...
+    @property
+    def level(self) -> Any: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def message(self) -> str: ...
+
+
+@dataclass(frozen=True)
+class FrameOverlay:
+    """What the measurement found in one frame, in pixels, points ``(x, y)`` = (col, row).
+
+    Attributes
+    ----------
+    centreline_px : (K, 2) detected beam centre line, or None.
+    hub_line_px : (2, 2) end points of the hub line, or None.
+    rigid_line_px : (2, 2) pivot and tip of the hypothetical rigid beam, or None.
+    sim_beam_px : (S, 2) simulated beam shape projected into the image, or None.
+    tip_px : (2,) detected tip, or None.
+    ok : whether the frame gave a measurement.
+    reason : why not, when ``ok`` is False.
+    """
+
+    centreline_px: ArrayLike | None = None
+    hub_line_px: ArrayLike | None = None
+    rigid_line_px: ArrayLike | None = None
+    sim_beam_px: ArrayLike | None = None
+    tip_px: ArrayLike | None = None
+    ok: bool = True
+    reason: str = ""
+
+
+def _points(name: str, value: ArrayLike | None, n: int | None = None) -> FloatArray | None:
+    if value is None:
+        return None
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 2 or (n is not None and a.shape[0] != n):
+        want = f"({n}, 2)" if n is not None else "(K, 2)"
+        raise ValueError(f"overlays.{name} must have shape {want}, got {a.shape}")
+    return a
+
+
+def _series(name: str, value: ArrayLike, n: int | None = None) -> FloatArray:
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim != 1 or (n is not None and a.shape[0] != n):
+        raise ValueError(f"{name} must have shape ({n if n is not None else 'N'},), got {a.shape}")
+    return a
+
+
+def _time_column(t_s: FloatArray) -> rr.TimeColumn:
+    # Rounded to whole ns here: rerun's own float conversion truncates (0.0025 s -> 2499999 ns).
+    ns = np.round(t_s * 1e9).astype(np.int64).astype("timedelta64[ns]")
+    return rr.TimeColumn("time", duration=ns)
+
+
+class RunViewer:
+    """One Rerun recording of a run; create it with :func:`open_viewer`.
+
+    Use as a context manager or call :meth:`close`. For a ``.rrd`` destination the data
+    goes to a temporary file beside it that replaces the destination on a successful
+    close; :meth:`abort` (or leaving the ``with`` block on an exception) removes it and
+    leaves an existing file untouched.
+    """
+
+    def __init__(
+        self,
+        recording: rr.RecordingStream,
+        *,
+        rrd_path: Path | None = None,
+        tmp_path: Path | None = None,
+    ) -> None:
+        self.recording = recording
+        self.rrd_path = rrd_path
+        self._tmp_path = tmp_path
+        self._frame_index = 0
+        self._closed = False
+        self._styled: set[str] = set()
+
+    # -- sinks -----------------------------------------------------------------------
+
+    def __enter__(self) -> RunViewer:
+        return self
+
+    def __exit__(self, exc_type: object, exc: object, tb: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def _finish(self) -> None:
+        self.recording.flush()
+        self.recording.disconnect()
+        self._closed = True
+
+    def close(self) -> Path | None:
+        """Flush everything; for a ``.rrd`` the file is complete afterwards.
+
+        Returns
+        -------
+        Path or None
+            The ``.rrd`` written, or None for a live viewer.
+        """
+        if self._closed:
+            return self.rrd_path
+        self._finish()
+        if self._tmp_path is not None and self.rrd_path is not None:
+            os.replace(self._tmp_path, self.rrd_path)
+            log.info("wrote Rerun recording %s", self.rrd_path)
+        return self.rrd_path
+
+    def abort(self) -> None:
+        """Stop logging; a ``.rrd`` destination is left as it was before."""
+        if not self._closed:
+            self._finish()
+        if self._tmp_path is not None:
+            with contextlib.suppress(FileNotFoundError):
+                self._tmp_path.unlink()
+
+    # -- helpers ---------------------------------------------------------------------
+
+    def _style(self, entity: str, archetype: Any) -> None:
+        if entity not in self._styled:
+            self.recording.log(entity, archetype, static=True, strict=True)
+            self._styled.add(entity)
+
+    def _send_scalars(
+        self, entity: str, t_s: FloatArray, values: FloatArray, name: str, colour: Any
+    ) -> None:
+        self._style(entity, rr.SeriesLines(names=name, colors=[colour]))
+        keep = np.isfinite(values)
+        if not keep.any():
+            return
+        self.recording.send_columns(
+            entity,
+            indexes=[_time_column(t_s[keep])],
+            columns=rr.Scalars.columns(scalars=values[keep]),
+            strict=True,
+        )
+
+    def _send_points_series(
+        self, entity: str, t_s: FloatArray, values: FloatArray, name: str, colour: Any
+    ) -> None:
+        self._style(entity, rr.SeriesPoints(names=name, colors=[colour], marker_sizes=[3.0]))
+        keep = np.isfinite(values)
+        if not keep.any():
+            return
+        self.recording.send_columns(
+            entity,
+            indexes=[_time_column(t_s[keep])],
+            columns=rr.Scalars.columns(scalars=values[keep]),
+            strict=True,
+        )
+
+    # -- streams ---------------------------------------------------------------------
+
+    def log_samples(self, t_s: ArrayLike, rocker_angle_rad: ArrayLike, strain: ArrayLike) -> None:
+        """The DAQ stream: rocker angle and the gauge strains.
+
+        Parameters
+        ----------
+        t_s : (N,) sample times on the run clock [s].
+        rocker_angle_rad : (N,) potentiometer angle [rad].
+        strain : (N, G) surface strain [m/m], gauges ordered from the clamp.
+        """
+        t = _series("t_s", t_s)
+        rocker = _series("rocker_angle_rad", rocker_angle_rad, t.size)
+        eps = np.asarray(strain, dtype=np.float64)
+        if eps.ndim != 2 or eps.shape[0] != t.size:
+            raise ValueError(f"strain must have shape ({t.size}, G), got {eps.shape}")
+        self._send_scalars("/daq/rocker_angle", t, rocker, "rocker angle", COLOUR_MEASURED)
+        for j in range(eps.shape[1]):
+            self._send_scalars(
+                gauge_entity("/daq/strain", j), t, eps[:, j], f"g{j + 1} measured", COLOUR_MEASURED
+            )
+
+    def log_sim(self, t_s: ArrayLike, tip_lateral_m: ArrayLike, strain: ArrayLike) -> None:
+        """The simulation: lateral tip deflection and strain at the gauges.
+
+        Parameters
+        ----------
+        t_s : (N,) times [s].
+        tip_lateral_m : (N,) simulated lateral tip deflection [m].
+        strain : (N, G) simulated surface strain at the gauges [m/m].
+        """
+        t = _series("t_s", t_s)
+        tip = _series("tip_lateral_m", tip_lateral_m, t.size)
+        eps = np.asarray(strain, dtype=np.float64)
+        if eps.ndim != 2 or eps.shape[0] != t.size:
+            raise ValueError(f"strain must have shape ({t.size}, G), got {eps.shape}")
+        self._send_scalars("/sim/tip_lateral", t, tip, "simulated", COLOUR_SIM)
+        for j in range(eps.shape[1]):
+            self._send_scalars(
+                gauge_entity("/sim/strain", j), t, eps[:, j], f"g{j + 1} simulated", COLOUR_SIM
+            )
+
+    def log_frame(
+        self,
+        t_s: float,
+        data: bytes,
+        encoding: str,
+        overlays: FrameOverlay | None = None,
+        *,
+        frame_index: int | None = None,
+    ) -> None:
+        """One camera frame (kept encoded) and what was measured in it.
+
+        Parameters
+        ----------
+        t_s : frame time on the run clock [s].
+        data : the JPEG or PNG bytes as logged.
+        encoding : "jpeg" or "png".
+        overlays : measurement overlays in pixels, or None (raw replay). A missing
+            overlay clears the previous frame's one, so nothing stale is drawn.
+        frame_index : value on the ``frame`` timeline (default: one more than the last).
+        """
+        if not isinstance(data, bytes | bytearray | memoryview):
+            raise TypeError(f"data must be bytes, got {type(data).__name__}")
+        media = _MEDIA_TYPES.get(str(encoding).lower())
+        if media is None:
+            raise ValueError(f"encoding must be jpeg or png, got {encoding!r}")
+        if not math.isfinite(t_s):
+            raise ValueError(f"t_s must be finite, got {t_s!r}")
+        index = self._frame_index if frame_index is None else int(frame_index)
+        self._frame_index = index + 1
+        rec = self.recording
+        rec.set_time("time", duration=np.timedelta64(round(t_s * 1e9), "ns"))
+        rec.set_time("frame", sequence=index)
+        try:
+            rec.log(
+                "/camera/image",
+                rr.EncodedImage(contents=bytes(data), media_type=media),
+                strict=True,
+            )
+            if overlays is not None:
+                self._log_overlays(overlays, t_s)
+        finally:
+            rec.reset_time()
+
+    def _log_overlays(self, o: FrameOverlay, t_s: float) -> None:
+        lines = {
+            "centreline": (_points("centreline_px", o.centreline_px), COLOUR_CENTRELINE, 2.0),
+            "hub_line": (_points("hub_line_px", o.hub_line_px, 2), COLOUR_HUB, 3.0),
+            "rigid_line": (_points("rigid_line_px", o.rigid_line_px, 2), COLOUR_RIGID, 2.0),
+            "sim_beam": (_points("sim_beam_px", o.sim_beam_px), COLOUR_SIM, 2.0),
+        }
+        rec = self.recording
+        for name, (pts, colour, radius) in lines.items():
+            entity = f"/camera/image/{name}"
+            if pts is None or pts.shape[0] < 2:
+                rec.log(entity, rr.Clear(recursive=False), strict=True)
+            else:
+                rec.log(
+                    entity,
+                    rr.LineStrips2D([pts], colors=[colour], radii=[radius], labels=[name]),
+                    strict=True,
+                )
+        entity = "/camera/image/tip"
+        if o.tip_px is None:
+            rec.log(entity, rr.Clear(recursive=False), strict=True)
+        else:
+            tip = np.asarray(o.tip_px, dtype=np.float64)
+            if tip.shape != (2,):
+                raise ValueError(f"overlays.tip_px must have shape (2,), got {tip.shape}")
+            rec.log(entity, rr.Points2D([tip], colors=[COLOUR_TIP], radii=[8.0]), strict=True)
+        if not o.ok:
+            rec.log(
+                "/events/frames",
+                rr.TextLog(f"frame at {t_s:.3f} s: {o.reason or 'no measurement'}", level="WARN"),
+                strict=True,
+            )
+
+    def log_tip_deflection(
+        self,
+        frame_t_s: ArrayLike,
+        tip_lateral_image_m: ArrayLike,
+        t_s: ArrayLike,
+        tip_lateral_strain_m: ArrayLike,
+        sim_tip_lateral_m: ArrayLike | None = None,
+    ) -> None:
+        """Lateral tip deflection from images (points), strains and simulation (lines).
+
+        Parameters
+        ----------
+        frame_t_s : (F,) frame times [s]; tip_lateral_image_m : (F,) [m], NaN = no value.
+        t_s : (N,) sample times [s]; tip_lateral_strain_m : (N,) [m].
+        sim_tip_lateral_m : (N,) [m] or None (already logged by :meth:`log_sim`).
+        """
+        ft = _series("frame_t_s", frame_t_s)
+        image = _series("tip_lateral_image_m", tip_lateral_image_m, ft.size)
+        t = _series("t_s", t_s)
+        strain = _series("tip_lateral_strain_m", tip_lateral_strain_m, t.size)
+        self._send_points_series("/tip_lateral/image", ft, image, "image", COLOUR_MEASURED)
+        self._send_scalars("/tip_lateral/strain", t, strain, "from strains", COLOUR_STRAIN)
+        if sim_tip_lateral_m is not None:
+            sim = _series("sim_tip_lateral_m", sim_tip_lateral_m, t.size)
+            self._send_scalars("/sim/tip_lateral", t, sim, "simulated", COLOUR_SIM)
+
+    def log_fig11(
+        self,
+        hub_angle_rad: ArrayLike,
+        tip_lateral_m: ArrayLike,
+        sim_hub_angle_rad: ArrayLike,
+        sim_tip_lateral_m: ArrayLike,
+    ) -> None:
+        """The paper's Fig. 11: lateral tip deflection against hub angle (static).
+
+        Drawn in a 2D view in degrees (x) and millimetres (up = +lateral, so the 2D
+        view's y is -mm): measured points over the simulated loop.
+
+        Parameters
+        ----------
+        hub_angle_rad, tip_lateral_m : (F,) measured points; NaN pairs are skipped.
+        sim_hub_angle_rad, sim_tip_lateral_m : (M,) simulated loop, in time order.
+        """
+        a = _series("hub_angle_rad", hub_angle_rad)
+        w = _series("tip_lateral_m", tip_lateral_m, a.size)
+        sa = _series("sim_hub_angle_rad", sim_hub_angle_rad)
+        sw = _series("sim_tip_lateral_m", sim_tip_lateral_m, sa.size)
+        rec = self.recording
+        keep = np.isfinite(a) & np.isfinite(w)
+        measured = np.column_stack([np.degrees(a[keep]), -1e3 * w[keep]])
+        rec.log(
+            "/fig11/measured",
+            rr.Points2D(measured, colors=[COLOUR_MEASURED], radii=[0.6]),
+            static=True,
+            strict=True,
+        )
+        keep = np.isfinite(sa) & np.isfinite(sw)
+        loop = np.column_stack([np.degrees(sa[keep]), -1e3 * sw[keep]])
+        if loop.shape[0] >= 2:
+            rec.log(
+                "/fig11/sim",
+                rr.LineStrips2D([loop], colors=[COLOUR_SIM], radii=[0.15]),
+                static=True,
+                strict=True,
+            )
+        extent = np.vstack([measured, loop]) if loop.size else measured
+        if extent.size:
+            lo, hi = extent.min(axis=0), extent.max(axis=0)
+            axes = [[[lo[0], 0.0], [hi[0], 0.0]], [[0.0, lo[1]], [0.0, hi[1]]]]
+            rec.log(
+                "/fig11/axes",
+                rr.LineStrips2D(axes, colors=[(128, 128, 128)], radii=[0.05]),
+                static=True,
+                strict=True,
+            )
+
+    def log_events(self, events: Iterable[EventLike], *, t0_ns: int = 0) -> None:
+        """Run events (start, stop, overruns, drops, clipping, errors) as a text log.
+
+        Parameters
+        ----------
+        events : objects with ``t_ns`` (int, run clock), ``level`` (foxglove.Log number
+            or name), ``name`` and ``message``.
+        t0_ns : subtracted from ``t_ns`` (the run start, when times are since start).
+        """
+        evs: Sequence[EventLike] = list(events)
+        if not evs:
+            return
+        t_ns = np.array([int(e.t_ns) - int(t0_ns) for e in evs], dtype=np.int64)
+        levels = [_level(e.level) for e in evs]
+        texts = [f"{e.name}: {e.message}" if e.message else str(e.name) for e in evs]
+        self.recording.send_columns(
+            "/events",
+            indexes=[rr.TimeColumn("time", duration=t_ns.astype("timedelta64[ns]"))],
+            columns=rr.TextLog.columns(text=texts, level=levels),
+            strict=True,
+        )
+
+    def log_summary(self, markdown: str) -> None:
+        """A markdown document shown beside the event log (static)."""
+        if not isinstance(markdown, str):
+            raise TypeError(f"markdown must be a str, got {type(markdown).__name__}")
+        self.recording.log(
+            "/summary",
+            rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN),
+            static=True,
+            strict=True,
+        )
+
+    def log_results(self, ds: xr.Dataset) -> None:
+        """Everything a results Dataset holds (see ``pipelines.results.schema``), and its error
+        summary as a markdown document."""
+        missing = [name for name in VARIABLES if name not in ds]
+        if missing:
+            raise ValueError(f"ds is not a results Dataset: missing {', '.join(missing)}")
+        t = np.asarray(ds["time"].values, dtype=np.float64)
+        ft = np.asarray(ds["frame_time"].values, dtype=np.float64)
+        rocker = np.asarray(ds["rocker_angle"].values, dtype=np.float64)
+        ok = np.asarray(ds["frame_ok"].values, dtype=bool)
+        image = np.where(ok, ds["tip_lateral"].values, np.nan)
+        self.log_samples(t, rocker, ds["strain"].values)
+        self.log_sim(t, ds["sim_tip_lateral"].values, ds["sim_strain"].values)
+        self.log_tip_deflection(ft, image, t, ds["tip_lateral_strain"].values)
+        # Fig. 11 on the potentiometer's angle for both, so a constant offset between
+        # the image frame and the potentiometer zero does not shift the points.
+        hub_at_frames = np.interp(ft, t, rocker, left=np.nan, right=np.nan) if ft.size else ft
+        steady = steady_state_mask(ds)
+        points = fig11_frames_mask(ds)
+        sim_hub = ds["hub_angle_sim"].values if "hub_angle_sim" in ds else rocker
+        self.log_fig11(
+            hub_at_frames[points],
+            image[points],
+            np.asarray(sim_hub)[steady],
+            np.asarray(ds["sim_tip_lateral"].values)[steady],
+        )
+        model = ds.attrs.get("sim_model", "?")
+        lines = [
+            f"# Simulation ({model}) against measurement",
+            "",
+            *error_table(summarise_errors(ds)),
+        ]
+        self.log_summary("\n".join(lines))
+
+
+def _level(level: Any) -> str:
+    if isinstance(level, str):
+        key: Any = level.strip().lower()
+    else:
+        try:
+            key = int(level)
+        except (TypeError, ValueError):
+            key = str(level).lower()
+    return _LEVELS.get(key, "INFO")
+
+
+def open_viewer(
+    app_id: str,
+    *,
+    rrd_path: str | os.PathLike[str] | None = None,
+    spawn: bool = False,
+    connect_url: str | None = None,
+) -> RunViewer:
+    """Open a recording to exactly one destination, with the beambench blueprint.
+
+    Parameters
+    ----------
+    app_id : Rerun application id (e.g. "beambench").
+    rrd_path : save to this ``.rrd`` file (written beside it under a temporary name and
+        renamed on :meth:`RunViewer.close`).
+    spawn : start a Rerun viewer and stream to it.
+    connect_url : stream to a running viewer, e.g. ``rerun+http://127.0.0.1:9876/proxy``.
+
+    Raises
+    ------
+    ValueError
+        Not exactly one destination, or the ``.rrd`` folder does not exist.
+    """
+    chosen = [rrd_path is not None, bool(spawn), connect_url is not None]
+    if sum(chosen) != 1:
+        raise ValueError(
+            f"give exactly one destination: rrd_path, spawn=True or connect_url (got {sum(chosen)})"
+        )
+    if connect_url is not None and not str(connect_url).startswith(_URL_SCHEMES):
+        # Checked here, before a recording exists: rerun would refuse it too, but only
+        # after buffering data that it then complains about dropping.
+        raise ValueError(
+            f"connect_url must start with one of {', '.join(_URL_SCHEMES)}, got {connect_url!r}"
+        )
+    rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
+    blueprint = build_blueprint()
+    if rrd_path is not None:
+        out = Path(rrd_path)
+        if out.is_dir():
+            raise ValueError(f"rrd_path {out} is a folder, expected a .rrd file path")
+        if not out.parent.is_dir():
+            raise ValueError(f"rrd_path {out}: folder {out.parent} does not exist")
+        # A fresh name beside the target (same file system, so the rename is atomic);
+        # not mkstemp, whose 0600 mode would stick to the renamed file.
+        tmp = out.parent / f".{out.name}.{uuid.uuid4().hex}.tmp"
+        rec.save(tmp, default_blueprint=blueprint)
+        return RunViewer(rec, rrd_path=out, tmp_path=tmp)
+    if spawn:
+        rec.spawn(default_blueprint=blueprint)
+    else:
+        rec.connect_grpc(connect_url, default_blueprint=blueprint)
+    return RunViewer(rec)
+
+
+__all__ = [
+    "EventLike",
+    "FrameOverlay",
+    "RrdEntity",
+    "RunViewer",
+    "build_blueprint",
+    "open_viewer",
+    "rrd_entities",
+]

@@ -1,0 +1,388 @@
+"""Nonlinear finite-element beams on a prescribed hub: dynamics and statics.
+
+Two formulations, both planar Euler-Bernoulli with consistent mass, solved only for the
+unprescribed (elastic) coordinates in the rotating hub frame (the partitioning of
+Eqs. 35-36) with the exact centrifugal, Coriolis and Euler loads of the prescribed rotation:
+
+- ``"flxdyn"`` (:mod:`sim.models.fe_flxdyn`): the paper's 6-dof element (Eqs. 29-33), each
+  element's deformation in a frame attached to its inboard end, frames chained.
+- ``"corot"`` (:mod:`sim.models.fe_ancf`): its big brother, exact for any rotation: absolute nodal
+  coordinates with cubic Hermite interpolation and the exact elastica strain energy.
+
+Proportional damping (Eq. 28), ``(a0 M + a1 K_T)`` times the elastic deformation rates,
+never acts on the rigid motion of the hub. Integration: Radau IIA or BDF with an exact
+Jacobian (scipy's, or for ``corot`` :mod:`sim.solvers.radau`: full Newton with each stage's
+Jacobian, the fast one at moderate tolerances), so the axial modes and the overdamped
+bending modes of the paper's damping (a1 = 0.1 s) cost little.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sim.beam import BeamProperties
+from sim.drives import Drive
+from sim.models.fe_ancf import AncfBeam, AncfSystem
+from sim.models.fe_flxdyn import FlxdynBeam, FlxdynSystem
+from sim.result import SimResult
+from sim.solvers.integrate import integrate
+
+FloatArray = NDArray[np.float64]
+
+FORMULATIONS = ("corot", "flxdyn")
+
+
+class _System(Protocol):
+    n_state: int
+
+    def rhs(self, t: float, y: FloatArray) -> FloatArray: ...
+
+    def jac(self, t: float, y: FloatArray) -> FloatArray: ...
+
+    def initial_state(self) -> FloatArray: ...
+
+    def sample(self, y_hist: FloatArray, s_m: FloatArray) -> tuple[FloatArray, FloatArray]: ...
+
+
+class StaticSolveError(RuntimeError):
+    """Newton's method did not converge for a static load step."""
+
+
+def _check_beam(beam: object) -> BeamProperties:
+    if not isinstance(beam, BeamProperties):
+        raise TypeError(f"beam must be a sim.beam.BeamProperties, got {type(beam).__name__}")
+    return beam
+
+
+def _check_int(name: str, value: object, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+    if not lo <= int(value) <= hi:
+        raise ValueError(f"{name} must be in [{lo}, {hi}], got {value}")
+    return int(value)
+
+
+def _check_nonneg(name: str, value: float) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v < 0.0:
+        raise ValueError(f"{name} must be a non-negative finite number, got {value!r}")
+    return v
+
+
+def _check_positive(name: str, value: float) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v <= 0.0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return v
+
+
+def _check_gauges(gauge_positions_m: ArrayLike, length_m: float) -> FloatArray:
+    g = np.atleast_1d(np.asarray(gauge_positions_m, dtype=float)).ravel()
+    if g.size and (not np.all(np.isfinite(g)) or g.min() < 0.0 or g.max() > length_m):
+        raise ValueError(
+            f"gauge_positions_m must lie on the beam, in [0, {length_m}] m, got {g.tolist()}"
+        )
+    return g
+
+
+def _check_times(t_eval_s: ArrayLike) -> FloatArray:
+    t = np.asarray(t_eval_s, dtype=float)
+    if t.ndim != 1 or t.size < 1:
+        raise ValueError(f"t_eval_s must be a 1-D array with at least one time, got {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("t_eval_s must be finite")
+    if t.size > 1 and np.any(np.diff(t) <= 0.0):
+        raise ValueError("t_eval_s must be strictly increasing")
+    return t
+
+
+def _check_formulation(formulation: str) -> str:
+    if formulation not in FORMULATIONS:
+        raise ValueError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+    return formulation
+
+
+def _deflections(
+    system: Any, y_hist: FloatArray, beam: BeamProperties, stations: FloatArray, gauges: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Station lateral/longitudinal deflections (T, S) and gauge strains (T, G)."""
+    r, _ = system.sample(y_hist, stations)
+    lat = r[..., 1]
+    lon = r[..., 0] - (beam.hub_offset_m + stations)[None, :]
+    if gauges.size:
+        _, eps = system.sample(y_hist, gauges)
+        strain = eps[..., 0] - beam.surface_offset_m * eps[..., 1]
+    else:
+        strain = np.zeros((y_hist.shape[0], 0))
+    return lat, lon, strain
+
+
+def _make_system(
+    formulation: str, beam: BeamProperties, n_elements: int, drive: Drive, a0: float, a1: float
+) -> _System:
+    if formulation == "corot":
+        return AncfSystem(beam, n_elements, drive, a0, a1)
+    return FlxdynSystem(beam, n_elements, drive, a0, a1)
+
+
+def simulate_fe(
+    beam: BeamProperties,
+    drive: Drive,
+    t_eval_s: ArrayLike,
+    *,
+    n_elements: int = 4,
+    formulation: str = "corot",
+    a0_per_s: float = 0.0,
+    a1_s: float = 0.0,
+    gauge_positions_m: Sequence[float] | ArrayLike = (),
+    n_stations: int = 21,
+    rtol: float = 1e-6,
+    atol: float = 1e-9,
+    initial_state: ArrayLike | None = None,
+    method: str = "auto",
+) -> SimResult:
+    """Simulate the beam clamped to a hub whose rotation ``drive`` prescribes.
+
+    Parameters
+    ----------
+    beam : the beam; clamped at ``beam.hub_offset_m`` from the pivot, axis along the hub.
+    drive : prescribed hub angle, rate and acceleration (``sim.drives.Drive``).
+    t_eval_s : (N,) strictly increasing output times, s; the run starts at ``t_eval_s[0]``
+        from ``initial_state`` (default: straight, unstrained, at rest relative to the hub).
+    n_elements : number of beam elements (1 .. 200).
+    formulation : ``"corot"`` (geometrically exact, absolute nodal coordinates) or
+        ``"flxdyn"`` (the paper's element, Eqs. 29-33, chained local frames).
+    a0_per_s, a1_s : proportional damping of Eq. 28 on the elastic deformation rates.
+    gauge_positions_m : (G,) gauge distances from the clamp, m.
+    n_stations : number of stations from clamp to tip (>= 2) for the shape output.
+    rtol, atol : integrator tolerances (the state is displacements, m and rad-like slopes,
+        and their rates).
+    initial_state : (2 n,) state ``[coordinates, rates]`` of the unprescribed coordinates,
+        e.g. ``result.settings["final_state"]`` of an earlier run with the same
+        formulation and ``n_elements``.
+    method : "auto" (default), "radau5", "BDF", "Radau" or "LSODA". "radau5" (``corot``
+        only: it needs the stage Jacobians) is our Radau IIA with each stage's exact
+        Jacobian at the predicted stages (:mod:`sim.solvers.radau`): the Kelvin-Voigt axial term
+        a1 EA acts along the rotating centre line, so a Jacobian frozen over a step (scipy's
+        Radau and BDF) makes Newton fail and the step collapse; with atol = rtol (1e-4 to
+        1e-6) it is 8-10x faster than BDF at equal error on the paper's scene (what
+        :mod:`sim.model_choice` and the speed table use). At tight
+        tolerances with a tiny atol (references, rtol 1e-6 and below) it is slower, so
+        "auto" stays with scipy: BDF when a1 > 0, Radau when ``a1_s == 0`` (undamped stiff
+        axial modes make high-order BDF crawl: it is not A-stable).
+
+    Returns
+    -------
+    SimResult
+        ``model`` is ``"fe-corot"`` or ``"fe-flxdyn"``; ``wall_time_s`` is the integration
+        alone; ``settings`` holds formulation, n_elements, rtol, atol, damping, method,
+        solver counts and ``final_state``.
+
+    Raises
+    ------
+    sim.solvers.integrate.IntegrationError
+        if the integrator fails (never a silently wrong answer).
+    """
+    beam = _check_beam(beam)
+    if not isinstance(drive, Drive):
+        raise TypeError("drive must provide angle(t), rate(t) and accel(t) (sim.drives.Drive)")
+    t = _check_times(t_eval_s)
+    ne = _check_int("n_elements", n_elements, 1, 200)
+    form = _check_formulation(formulation)
+    a0 = _check_nonneg("a0_per_s", a0_per_s)
+    a1 = _check_nonneg("a1_s", a1_s)
+    gauges = _check_gauges(gauge_positions_m, beam.length_m)
+    ns = _check_int("n_stations", n_stations, 2, 10_000)
+    rt = _check_positive("rtol", rtol)
+    at = _check_positive("atol", atol)
+    system = _make_system(form, beam, ne, drive, a0, a1)
+    if initial_state is None:
+        y0 = system.initial_state()
+    else:
+        y0 = np.asarray(initial_state, dtype=float).ravel()
+        if y0.shape != (system.n_state,) or not np.all(np.isfinite(y0)):
+            raise ValueError(
+                f"initial_state must be {system.n_state} finite numbers for formulation "
+                f"{form!r} with {ne} elements, got shape {np.shape(initial_state)}"
+            )
+    jac_stages = getattr(system, "jac_stages", None)
+    if method == "auto":
+        method = "BDF" if a1 > 0.0 else "Radau"
+    traj = integrate(
+        system.rhs,
+        system.jac,
+        t,
+        y0,
+        rtol=rt,
+        atol=at,
+        method=method,
+        rhs_stages=getattr(system, "rhs_stages", None),
+        jac_stages=jac_stages,
+        rhs_jac_stages=getattr(system, "rhs_jac_stages", None),
+    )
+    stations = np.linspace(0.0, beam.length_m, ns)
+    lat, lon, strain = _deflections(system, traj.y, beam, stations, gauges)
+    settings: dict[str, Any] = {
+        "formulation": form,
+        "n_elements": ne,
+        "rtol": rt,
+        "atol": at,
+        "damping": {"a0_per_s": a0, "a1_s": a1},
+        "method": method,
+        "n_rhs": traj.n_rhs,
+        "n_jac": traj.n_jac,
+        "n_steps": traj.n_steps,
+        "final_state": traj.y[-1].tolist(),
+    }
+    return SimResult(
+        time_s=t,
+        hub_angle_rad=np.asarray(drive.angle(t), dtype=float),
+        tip_lateral_m=lat[:, -1].copy(),
+        tip_longitudinal_m=lon[:, -1].copy(),
+        stations_m=stations,
+        station_lateral_m=lat,
+        station_longitudinal_m=lon,
+        gauge_positions_m=gauges,
+        strain=strain,
+        model=f"fe-{form}",
+        wall_time_s=traj.wall_time_s,
+        settings=settings,
+    )
+
+
+def _static_newton(
+    residual_and_tangent: Any, x0: FloatArray, n_steps: int, merit: Any = None
+) -> FloatArray:
+    """Newton with load stepping: solve ``residual(x, lam) = 0`` for lam = 1/n .. 1.
+
+    ``merit(x, lam)`` (the potential energy, when there is one) guards each step by
+    backtracking, which keeps coarse, membrane-stiff meshes from overshooting."""
+    x = x0.copy()
+    for k in range(1, n_steps + 1):
+        lam = k / n_steps
+        dx_prev = math.inf
+        for _ in range(100):
+            res, kt = residual_and_tangent(x, lam)
+            dx = np.linalg.solve(kt, -res)
+            size = max(1e-12, float(np.max(np.abs(x))))
+            dx_max = float(np.max(np.abs(dx)))
+            step = 1.0
+            if merit is not None and dx_max > 1e-3 * size:
+                m0 = merit(x, lam)
+                while step > 1e-6 and merit(x + step * dx, lam) > m0 + 1e-12 * abs(m0):
+                    step *= 0.5
+            x = x + step * dx
+            if not np.all(np.isfinite(x)):
+                raise StaticSolveError(f"non-finite state at load step {k}/{n_steps}")
+            if step == 1.0 and (
+                dx_max <= 1e-10 * size or (dx_max <= 1e-7 * size and dx_max >= 0.5 * dx_prev)
+            ):
+                break  # converged, or stagnating at round-off
+            dx_prev = dx_max if step == 1.0 else math.inf
+        else:
+            raise StaticSolveError(f"Newton did not converge at load step {k}/{n_steps}")
+    return x
+
+
+def solve_static_fe(
+    beam: BeamProperties,
+    tip_force_n: float,
+    *,
+    n_elements: int = 8,
+    formulation: str = "corot",
+    gauge_positions_m: Sequence[float] | ArrayLike = (),
+    n_stations: int = 21,
+) -> SimResult:
+    """Geometrically nonlinear static cantilever under a tip point load of fixed direction.
+
+    The load of magnitude ``tip_force_n`` (N, >= 0) acts toward -lateral (the paper's
+    hanging weight, the beam bending in the vertical plane, self-weight excluded as in
+    §5.1). Newton's method with load stepping on the exact tangent.
+
+    Returns
+    -------
+    SimResult
+        One time sample (t = 0): equilibrium ``tip_lateral_m`` (negative),
+        ``tip_longitudinal_m`` (negative: the tip is pulled in), station deflections and
+        gauge strains; ``wall_time_s`` is the solve alone.
+    """
+    beam = _check_beam(beam)
+    p = _check_nonneg("tip_force_n", tip_force_n)
+    ne = _check_int("n_elements", n_elements, 1, 400)
+    form = _check_formulation(formulation)
+    gauges = _check_gauges(gauge_positions_m, beam.length_m)
+    ns = _check_int("n_stations", n_stations, 2, 10_000)
+    # rough size of the rotation decides the number of load steps
+    theta = p * beam.length_m**2 / (2.0 * beam.bending_stiffness_n_m2)
+    n_steps = max(1, math.ceil(theta / 0.05))
+    t0 = time.perf_counter()
+    system: Any
+    if form == "corot":
+        fe = AncfBeam(beam, ne)
+        fr = fe.free
+        load = np.zeros(fe.n_dof)
+        load[4 * ne + 1] = -p
+        load_f = load[fr]
+
+        def ft(d: FloatArray, lam: float) -> tuple[FloatArray, FloatArray]:
+            e = fe.e_ref.copy()
+            e[fr] += d
+            f, k = fe.tangent(e)
+            return f[fr] - lam * load_f, k[np.ix_(fr, fr)]
+
+        def energy(d: FloatArray, lam: float) -> float:
+            e = fe.e_ref.copy()
+            e[fr] += d
+            return fe.strain_energy(e) - lam * float(load_f @ d)
+
+        x = _static_newton(ft, np.zeros(fr.size), n_steps, energy)
+        system = AncfSystem(beam, ne, _NoDrive(), 0.0, 0.0)
+    else:
+        fb = FlxdynBeam(beam, ne)
+        x = _static_newton(
+            lambda q, lam: fb.static_residual_and_tangent(q, lam * p), np.zeros(fb.n_q), n_steps
+        )
+        system = FlxdynSystem(beam, ne, _NoDrive(), 0.0, 0.0)
+    wall = time.perf_counter() - t0
+    y = np.concatenate([x, np.zeros_like(x)])[None, :]
+    stations = np.linspace(0.0, beam.length_m, ns)
+    lat, lon, strain = _deflections(system, y, beam, stations, gauges)
+    return SimResult(
+        time_s=np.zeros(1),
+        hub_angle_rad=np.zeros(1),
+        tip_lateral_m=lat[:, -1].copy(),
+        tip_longitudinal_m=lon[:, -1].copy(),
+        stations_m=stations,
+        station_lateral_m=lat,
+        station_longitudinal_m=lon,
+        gauge_positions_m=gauges,
+        strain=strain,
+        model=f"fe-{form}",
+        wall_time_s=wall,
+        settings={
+            "formulation": form,
+            "n_elements": ne,
+            "tip_force_n": p,
+            "load_steps": n_steps,
+            "static": True,
+        },
+    )
+
+
+class _NoDrive:
+    """A hub at rest (statics)."""
+
+    def angle(self, t_s: ArrayLike) -> FloatArray:
+        return np.zeros(np.shape(t_s))
+
+    def rate(self, t_s: ArrayLike) -> FloatArray:
+        return np.zeros(np.shape(t_s))
+
+    def accel(self, t_s: ArrayLike) -> FloatArray:
+        return np.zeros(np.shape(t_s))

@@ -1,0 +1,104 @@
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from pipelines.cli import main
+from vision import Calibration
+from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
+from vision.synthetic.render import BeamPose, SceneSpec, encode, render_frame
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("measure")
+    spec = SceneSpec.from_rig(
+        CameraConfig(),
+        CameraPoseConfig(),
+        RegistrationConfig(),
+        beam_length_m=0.835,
+        beam_width_m=0.01905,
+        hub_offset_m=0.008,
+        noise_dn=2.0,
+    )
+    pose = BeamPose.from_slope(math.radians(290), 0.835, lambda s: 0.03 * (2 * s / 0.835))
+    frame = render_frame(spec, [pose])
+    tr = frame.truth
+    cal = Calibration(tr.corners_px, tr.plane_points_m, tr.camera_matrix, tr.distortion)
+    (d / "cal.json").write_text(cal.to_json())
+    (d / "frame.jpg").write_bytes(encode(frame.image, "jpeg", 95))
+    (d / "black.png").write_bytes(encode(frame.image * 0, "png"))
+    (d / "junk.jpg").write_bytes(b"junk")
+    (d / "truth.json").write_text(json.dumps({"tip_lateral_m": tr.tip_lateral_m}))
+    return {p.name: p for p in d.iterdir()}
+
+
+def test_json_lines_per_image(files, capsys) -> None:
+    rc = main(
+        [
+            "measure",
+            str(files["frame.jpg"]),
+            str(files["black.png"]),
+            "--calibration",
+            str(files["cal.json"]),
+            "--json",
+        ]
+    )
+    assert rc == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert len(lines) == 2
+    good, black = lines
+    truth = json.loads(files["truth.json"].read_text())["tip_lateral_m"]
+    assert good["ok"] and abs(good["tip_lateral_m"] - truth) < 3e-4
+    assert set(good) >= {
+        "ok",
+        "reason",
+        "hub_angle_rad",
+        "tip_lateral_m",
+        "tip_longitudinal_m",
+        "stations_m",
+        "lateral_at_stations_m",
+    }
+    assert math.degrees(good["hub_angle_rad"]) == pytest.approx(290, abs=0.02)
+    assert not black["ok"] and black["reason"] and black["tip_lateral_m"] is None
+
+
+def test_text_output(files, capsys) -> None:
+    assert main(["measure", str(files["frame.jpg"]), "--calibration", str(files["cal.json"])]) == 0
+    out = capsys.readouterr().out
+    hub = float(out.split("hub angle ")[1].split(" deg")[0])
+    assert hub == pytest.approx(290.0, abs=0.02) and "tip lateral +25." in out
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["junk.jpg", "--calibration", "cal.json"], "junk.jpg: not a readable image"),
+        (["missing.jpg", "--calibration", "cal.json"], "missing.jpg: no such file"),
+        (["frame.jpg", "--calibration", "frame.jpg"], "frame.jpg: cannot be read"),
+        (["frame.jpg", "--calibration", "nope.json"], "nope.json: no such file"),
+    ],
+)
+def test_bad_files_exit_2_with_one_line(files, capsys, args, words) -> None:
+    d = files["cal.json"].parent
+    argv = ["measure"] + [str(d / a) if not a.startswith("--") else a for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and words in err and err.count("\n") == 1
+
+
+def test_a_truncated_image_gives_one_line_and_nothing_from_opencv(files, capfd) -> None:
+    """At the file-descriptor level: OpenCV's own warning about damaged data would be a
+    second line before ours."""
+    d = files["cal.json"].parent
+    ok, png = cv2.imencode(".png", np.full((64, 64), 128, np.uint8))
+    assert ok
+    (d / "cut.png").write_bytes(png.tobytes()[:50])
+    assert main(["measure", str(d / "cut.png"), "--calibration", str(d / "cal.json")]) == 2
+    err = capfd.readouterr().err
+    assert err.startswith("error: ") and "cut.png" in err and err.count("\n") == 1

@@ -1,0 +1,311 @@
+"""Rerun review: write a .rrd from known arrays and frames, read it back, check it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pyarrow as pa
+import pytest
+from rerun.chunk import RrdReader
+
+from pipelines.results.schema import make_results, summarise_errors
+from pipelines.review.viewer import FrameOverlay, open_viewer, rrd_entities
+from pipelines.rig import Rig
+
+FS_HZ = 400.0
+
+
+@dataclass(frozen=True)
+class Event:
+    """The shape of daq.log's Event (duck-typed by the viewer)."""
+
+    t_ns: int
+    level: Any
+    name: str
+    message: str
+
+
+def _png(width: int = 64, height: int = 48) -> bytes:
+    img = np.zeros((height, width, 3), np.uint8)
+    cv2.line(img, (5, 40), (60, 8), (255, 255, 255), 2)
+    ok, buf = cv2.imencode(".png", img)
+    assert ok
+    return buf.tobytes()
+
+
+def _rows(path: Path, entity: str, component: str) -> list[tuple[int | None, Any]]:
+    """(time in ns or None for static, value) of every row of ``entity`` holding ``component``."""
+    out: list[tuple[int | None, Any]] = []
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path != entity:
+            continue
+        rb = chunk.to_record_batch()
+        if component not in rb.schema.names:
+            continue
+        values = rb.column(component).to_pylist()
+        if "time" in rb.schema.names:
+            times = rb.column("time").cast(pa.int64()).to_pylist()
+        else:
+            times = [None] * len(values)
+        out.extend(zip(times, values, strict=True))
+    return sorted(out, key=lambda r: -1 if r[0] is None else r[0])
+
+
+def test_samples_and_sim_go_in_as_columns_with_exact_times(tmp_path: Path) -> None:
+    n = 1000
+    t = np.arange(n) / FS_HZ
+    rocker = 0.7669 * np.sin(4.97 * t)
+    strain = np.column_stack([1e-4 * np.cos(4.97 * t + k) for k in range(4)])
+    strain[10, 2] = np.nan  # a missing sample is skipped, not drawn as a value
+    path = tmp_path / "run.rrd"
+    with open_viewer("beambench-test", rrd_path=path) as viewer:
+        viewer.log_samples(t, rocker, strain)
+        viewer.log_sim(t, 0.02 * np.sin(4.97 * t), 0.5 * strain)
+    entities = rrd_entities(path)
+    assert entities["/daq/rocker_angle"].rows == n
+    assert entities["/daq/strain/g3"].rows == n - 1
+    assert entities["/sim/strain/g4"].rows == n
+    assert entities["/sim/tip_lateral"].rows == n
+    assert "Scalars:scalars" in entities["/daq/strain/g1"].components
+    rows = _rows(path, "/daq/rocker_angle", "Scalars:scalars")
+    times = np.array([r[0] for r in rows])
+    np.testing.assert_array_equal(times, np.round(t * 1e9).astype(np.int64))
+    np.testing.assert_array_equal([r[1][0] for r in rows], rocker)
+    g2 = _rows(path, "/sim/strain/g2", "Scalars:scalars")
+    np.testing.assert_array_equal([r[1][0] for r in g2], 0.5 * strain[:, 1])
+    # A blueprint travels with the recording.
+    assert RrdReader(path).blueprints()
+
+
+def test_frames_keep_their_bytes_and_overlays_draw_on_the_image(tmp_path: Path) -> None:
+    png = _png()
+    jpeg = cv2.imencode(".jpg", np.full((48, 64, 3), 128, np.uint8))[1].tobytes()
+    centre = np.array([[5.0, 40.0], [30.0, 25.0], [60.0, 8.0]])
+    overlay = FrameOverlay(
+        centreline_px=centre,
+        hub_line_px=[[5.0, 40.0], [12.0, 36.0]],
+        rigid_line_px=[[5.0, 40.0], [62.0, 10.0]],
+        sim_beam_px=centre + 0.5,
+        tip_px=[60.0, 8.0],
+        ok=True,
+    )
+    path = tmp_path / "frames.rrd"
+    with open_viewer("beambench-test", rrd_path=path) as viewer:
+        viewer.log_frame(0.1, png, "png", overlay)
+        viewer.log_frame(0.2, jpeg, "JPEG", FrameOverlay(ok=False, reason="beam not found"))
+        viewer.log_frame(0.3, png, "png", None)
+    entities = rrd_entities(path)
+    image = entities["/camera/image"]
+    assert image.rows == 3
+    assert {"time", "frame"} <= image.timelines
+    blobs = _rows(path, "/camera/image", "EncodedImage:blob")
+    assert [bytes(b[1][0]) for b in blobs] == [png, jpeg, png]
+    media = _rows(path, "/camera/image", "EncodedImage:media_type")
+    assert [m[1][0] for m in media] == ["image/png", "image/jpeg", "image/png"]
+    strips = _rows(path, "/camera/image/centreline", "LineStrips2D:strips")
+    assert len(strips) == 1 and strips[0][0] == 100_000_000
+    np.testing.assert_allclose(np.array(strips[0][1][0]), centre)
+    tip = _rows(path, "/camera/image/tip", "Points2D:positions")
+    np.testing.assert_allclose(tip[0][1], [[60.0, 8.0]])
+    # The failed frame clears the previous overlays so nothing stale is drawn over it.
+    for name in ("centreline", "hub_line", "rigid_line", "sim_beam", "tip"):
+        cleared = _rows(path, f"/camera/image/{name}", "Clear:is_recursive")
+        assert [c[0] for c in cleared] == [200_000_000], name
+    reasons = _rows(path, "/events/frames", "TextLog:text")
+    assert len(reasons) == 1 and "beam not found" in reasons[0][1][0]
+    frames = [r[0] for r in _rows(path, "/camera/image", "EncodedImage:blob")]
+    assert frames == [100_000_000, 200_000_000, 300_000_000]
+
+
+def test_events_tip_deflection_and_fig11(tmp_path: Path) -> None:
+    events = [
+        Event(t_ns=5_000_000_000, level=2, name="start", message="capture started"),
+        Event(t_ns=5_250_000_000, level="warning", name="dropped_frames", message="2 frames"),
+        Event(t_ns=6_000_000_000, level=4, name="device_error", message="timeout"),
+    ]
+    path = tmp_path / "ev.rrd"
+    t = np.arange(400) / FS_HZ
+    ft = np.array([0.1, 0.2, 0.3])
+    with open_viewer("beambench-test", rrd_path=path) as viewer:
+        viewer.log_events(events, t0_ns=5_000_000_000)
+        viewer.log_tip_deflection(ft, [0.01, np.nan, 0.012], t, 0.01 * np.ones(400))
+        viewer.log_fig11(
+            np.radians([10.0, -20.0]),
+            [0.005, -0.004],
+            np.radians(np.linspace(-40, 40, 30)),
+            np.linspace(-0.02, 0.02, 30),
+        )
+    texts = _rows(path, "/events", "TextLog:text")
+    levels = _rows(path, "/events", "TextLog:level")
+    assert [r[0] for r in texts] == [0, 250_000_000, 1_000_000_000]
+    assert [r[1][0] for r in levels] == ["INFO", "WARN", "ERROR"]
+    assert texts[1][1][0] == "dropped_frames: 2 frames"
+    assert rrd_entities(path)["/tip_lateral/image"].rows == 2  # the NaN frame is skipped
+    measured = _rows(path, "/fig11/measured", "Points2D:positions")
+    assert measured[0][0] is None  # static: the figure, not a moment of the run
+    # Degrees across, millimetres up (the 2D view's y points down, hence the sign).
+    np.testing.assert_allclose(measured[0][1], [[10.0, -5.0], [-20.0, 4.0]], rtol=1e-6)
+    loop = _rows(path, "/fig11/sim", "LineStrips2D:strips")
+    assert np.array(loop[0][1][0]).shape == (30, 2)
+
+
+def _results() -> Any:
+    t = np.arange(0, 8.0, 1 / FS_HZ)
+    omega = 2 * np.pi * 0.92
+    rocker = 0.7669 * np.sin(omega * t)
+    tip = 0.02 * np.sin(omega * t - 0.5)
+    idx = np.arange(0, t.size, 27)
+    ok = np.ones(idx.size, dtype=bool)
+    ok[4] = False
+    strain = 3e-4 * np.outer(np.sin(omega * t), [1.0, 0.7, 0.45, 0.2])
+    return make_results(
+        time_s=t,
+        rocker_angle_rad=rocker,
+        strain=strain,
+        gauge_m=[0.005, 0.204, 0.403, 0.603],
+        frame_time_s=t[idx],
+        hub_angle_image_rad=rocker[idx],
+        tip_lateral_m=tip[idx] + 1e-4,
+        tip_longitudinal_m=np.zeros(idx.size),
+        frame_ok=ok,
+        tip_lateral_strain_m=tip * 1.01,
+        sim_tip_lateral_m=tip,
+        sim_strain=strain,
+        attrs={
+            "source_log": "run.mcap",
+            "rig_json": Rig().to_json(),
+            "software_version": "test",
+            "sim_model": "modal",
+            "sim_settings": {},
+            "camera_to_daq_offset_s": 0.0,
+            "settle_time_s": 2.0,
+        },
+    )
+
+
+def test_log_results_shows_everything_in_the_results(tmp_path: Path) -> None:
+    ds = _results()
+    path = tmp_path / "results.rrd"
+    with open_viewer("beambench-test", rrd_path=path) as viewer:
+        viewer.log_results(ds)
+    e = rrd_entities(path)
+    n = ds.sizes["time"]
+    for entity in ("/daq/rocker_angle", "/daq/strain/g4", "/sim/strain/g1", "/sim/tip_lateral"):
+        assert e[entity].rows == n, entity
+    assert e["/tip_lateral/strain"].rows == n
+    assert e["/tip_lateral/image"].rows == int(ds["frame_ok"].sum())
+    # Fig. 11: the simulated loop of the last three crank cycles (0.92 Hz: 3.26 s) under
+    # the frames measured after the simulation's start-up (settle_time_s).
+    ft = ds["frame_time"].values
+    expected = int(np.sum(ds["frame_ok"].values & (ft >= 2.0)))
+    measured = _rows(path, "/fig11/measured", "Points2D:positions")
+    assert len(measured[0][1]) == expected
+    assert 0 < expected < int(ds["frame_ok"].sum())
+    loop = np.array(_rows(path, "/fig11/sim", "LineStrips2D:strips")[0][1][0])
+    t = ds["time"].values
+    assert loop.shape[0] == np.count_nonzero(t >= t[-1] - 3 / 0.92)
+    # The error summary travels as a markdown document, in mm.
+    doc = _rows(path, "/summary", "TextDocument:text")[0][1][0]
+    rms_mm = 1e3 * summarise_errors(ds)["tip_lateral_image_vs_sim_rms_m"]
+    assert rms_mm == pytest.approx(0.1, rel=1e-6)  # the image was offset by 0.1 mm
+    assert "| tip lateral, image - sim, RMS | 0.1 | mm |" in doc
+
+
+def test_rrd_is_replaced_only_when_the_run_succeeds(tmp_path: Path) -> None:
+    path = tmp_path / "keep.rrd"
+    path.write_bytes(b"previous recording")
+    with pytest.raises(RuntimeError, match="processing failed"):
+        with open_viewer("beambench-test", rrd_path=path) as viewer:
+            viewer.log_samples(np.arange(3.0), np.zeros(3), np.zeros((3, 4)))
+            raise RuntimeError("processing failed")
+    assert path.read_bytes() == b"previous recording"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.rrd"]
+    viewer = open_viewer("beambench-test", rrd_path=path)
+    viewer.log_samples(np.arange(3.0), np.zeros(3), np.zeros((3, 4)))
+    assert viewer.close() == path
+    assert rrd_entities(path)["/daq/rocker_angle"].rows == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.rrd"]
+
+
+def test_bad_arguments_name_the_parameter(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="exactly one destination"):
+        open_viewer("x")
+    with pytest.raises(ValueError, match="exactly one destination"):
+        open_viewer("x", rrd_path=tmp_path / "a.rrd", connect_url="rerun+http://h:1/proxy")
+    with pytest.raises(ValueError, match="does not exist"):
+        open_viewer("x", rrd_path=tmp_path / "nope" / "a.rrd")
+    with pytest.raises(ValueError, match="connect_url"):
+        open_viewer("x", connect_url="localhost:9876")
+    with open_viewer("x", rrd_path=tmp_path / "a.rrd") as viewer:
+        with pytest.raises(ValueError, match="encoding"):
+            viewer.log_frame(0.0, _png(), "bmp", None)
+        with pytest.raises(ValueError, match="hub_line_px"):
+            viewer.log_frame(0.0, _png(), "png", FrameOverlay(hub_line_px=[[0, 0], [1, 1], [2, 2]]))
+        with pytest.raises(ValueError, match="strain"):
+            viewer.log_samples(np.arange(3.0), np.zeros(3), np.zeros((2, 4)))
+    with pytest.raises(FileNotFoundError):
+        rrd_entities(tmp_path / "missing.rrd")
+    junk = tmp_path / "junk.rrd"
+    junk.write_bytes(b"not a recording")
+    with pytest.raises(ValueError, match=r"junk\.rrd"):
+        rrd_entities(junk)
+
+
+def _blueprint_views(path: Path) -> list[tuple[str, str, list[str]]]:
+    """(class, origin, content queries with $origin expanded) of each blueprint view."""
+    reader = RrdReader(path)
+    views: dict[str, dict[str, Any]] = {}
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        if not chunk.entity_path.startswith("/view/"):
+            continue
+        view = views.setdefault(chunk.entity_path.split("/")[2], {})
+        rb = chunk.to_record_batch()
+        for name, key in (
+            ("ViewBlueprint:class_identifier", "class"),
+            ("ViewBlueprint:space_origin", "origin"),
+            ("ViewContents:query", "query"),
+        ):
+            if name in rb.schema.names:
+                view[key] = rb.column(name).to_pylist()[-1]
+    return [
+        (v["class"][0], v["origin"][0], [q.replace("$origin", v["origin"][0]) for q in v["query"]])
+        for v in views.values()
+    ]
+
+
+def _matches(query: str, entity: str) -> bool:
+    if query.endswith("/**"):
+        base = query[:-3]
+        return entity == base or entity.startswith(base.rstrip("/") + "/")
+    return entity == query
+
+
+def test_the_blueprint_lays_out_every_logged_entity(tmp_path: Path) -> None:
+    path = tmp_path / "full.rrd"
+    overlay = FrameOverlay(
+        centreline_px=[[1.0, 2.0], [3.0, 4.0]],
+        hub_line_px=[[1.0, 2.0], [2.0, 3.0]],
+        rigid_line_px=[[1.0, 2.0], [5.0, 6.0]],
+        sim_beam_px=[[1.0, 2.0], [3.0, 4.5]],
+        tip_px=[3.0, 4.0],
+    )
+    with open_viewer("beambench-test", rrd_path=path) as viewer:
+        viewer.log_results(_results())
+        viewer.log_frame(0.5, _png(), "png", overlay)
+        viewer.log_frame(0.6, _png(), "png", FrameOverlay(ok=False, reason="blurred"))
+        viewer.log_events([Event(0, 2, "start", "")])
+    views = _blueprint_views(path)
+    classes = sorted(c for c, _, _ in views)
+    assert classes == ["2D", "2D", "TextDocument", "TextLog"] + ["TimeSeries"] * 6
+    assert {o for c, o, _ in views if c == "2D"} == {"/camera", "/fig11"}
+    logged = [k for k in rrd_entities(path) if not k.startswith("/__")]
+    assert len(logged) == 24  # 5 daq, 5 sim, 2 tip, image + 5 overlays, 3 fig11, 3 text
+    orphans = [e for e in logged if not any(_matches(q, e) for _, _, qs in views for q in qs)]
+    assert not orphans, f"logged but in no view: {orphans}"
+    # Each gauge's panel shows its measured and simulated strain together.
+    strain_panels = [qs for c, _, qs in views if c == "TimeSeries" and "/daq/strain/g2" in qs]
+    assert strain_panels == [["/daq/strain/g2", "/sim/strain/g2"]]

@@ -1,0 +1,104 @@
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from vision.codec import decode
+from vision.synthetic.render import BeamPose, encode, render_frame
+
+
+def test_straight_beam_centre_line_matches_the_geometry(clean_spec, vt) -> None:
+    """Across the strip, the brightness-weighted centre of each image column lies on the
+    projection of the beam axis (no distortion, so the axis is a straight image line)."""
+    th = math.radians(330.0)
+    frame = render_frame(clean_spec, [BeamPose.straight(th, vt.L_M)])
+    img = frame.image.astype(float)
+    e = np.array([math.cos(th), math.sin(th)])
+    a = np.array([0.3, 0.7])
+    ends = clean_spec.plane_to_image_px(a[:, None] * e)
+    bg = clean_spec.background_dn
+    errs = []
+    for x in range(int(ends[0, 0]) + 5, int(ends[1, 0]) - 5, 7):
+        y_axis = np.interp(x, ends[:, 0], ends[:, 1])
+        rows = np.arange(int(y_axis) - 25, int(y_axis) + 26)
+        v = img[rows, x] - bg
+        errs.append(np.sum(v * rows) / np.sum(v) - y_axis)
+    # 4x4 supersampling and 8-bit rounding leave a few hundredths of a pixel per column;
+    # the strip narrowing with depth moves the brightness centre by ~0.005 px.
+    assert abs(np.mean(errs)) < 0.02, np.mean(errs)  # perspective shifts it ~0.005 px
+    assert np.max(np.abs(errs)) < 0.08, np.max(np.abs(errs))
+    # Its brightness-area across a column is the beam width in pixels (sec of the angle).
+    assert frame.truth.tip_lateral_m == 0.0 and frame.truth.hub_angle_rad == th
+
+
+def test_truth_of_a_bent_beam(vt) -> None:
+    pose = vt.bent(0.0, 0.1)
+    lat, lon = pose.at(np.array([vt.L_M]))
+    # Cubic shape of slope th_L(2 s/L - s^2/L^2): w(L) = 2/3 th_L L for small slopes.
+    assert lat[0] == pytest.approx(2 / 3 * 0.1 * vt.L_M, rel=5e-3)
+    assert -0.01 < lon[0] < 0  # pulled in, inextensible
+    s = np.linspace(0, vt.L_M, 200)
+    la, lo = pose.at(s)
+    arc = np.sum(np.hypot(np.diff(s + lo), np.diff(la)))
+    assert arc == pytest.approx(vt.L_M, rel=1e-6)
+
+
+def test_registration_corners_in_truth_are_dark_light_corners(clean_spec, vt) -> None:
+    frame = render_frame(clean_spec, [BeamPose.straight(math.radians(280), vt.L_M)])
+    c = frame.truth.corners_px
+    centre = c.mean(axis=0)
+    img = frame.image.astype(float)
+    for p in c:
+        out = p + 3 * (p - centre) / np.linalg.norm(p - centre)
+        inn = p - 3 * (p - centre) / np.linalg.norm(p - centre)
+        # Inside the crossing square: groove (dark); diagonally outside: plate (light).
+        assert img[round(inn[1]), round(inn[0])] < 80
+        assert img[round(out[1]), round(out[0])] > 150
+
+
+def test_noise_level_and_encoding_round_trip(nominal_spec, vt) -> None:
+    frame = render_frame(nominal_spec, [BeamPose.straight(4.5, vt.L_M)])
+    patch = frame.image[1400:1500, 100:300].astype(float)
+    assert patch.std() == pytest.approx(2.0, rel=0.15)
+    png = decode(encode(frame.image, "png"))
+    np.testing.assert_array_equal(png, frame.image)
+    jpg = decode(encode(frame.image, "jpeg", quality=90))
+    assert np.abs(jpg.astype(float) - frame.image).mean() < 2.0
+    with pytest.raises(ValueError, match="encoding"):
+        encode(frame.image, "gif")
+    with pytest.raises(TypeError):
+        encode(frame.image.astype(float))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="not a readable image"):
+        decode(b"not an image")
+
+
+def test_motion_blur_spreads_the_beam(clean_spec, vt) -> None:
+    poses = [vt.bent(math.radians(300) + d, 0.0) for d in np.linspace(-0.004, 0.004, 5)]
+    sharp = render_frame(clean_spec, poses[2:3]).image
+    blurred = render_frame(clean_spec, poses).image
+    assert np.count_nonzero(blurred > 100) > np.count_nonzero(sharp > 100)
+    assert np.abs(blurred.astype(int) - sharp).max() > 50
+
+
+def test_rendering_is_fast(nominal_spec, vt) -> None:
+    pose = vt.bent(math.radians(300), 0.05)
+    render_frame(nominal_spec, [pose])
+    t0 = time.perf_counter()
+    for _ in range(3):
+        encode(render_frame(nominal_spec, [pose]).image, "jpeg", 90)
+    per_frame = (time.perf_counter() - t0) / 3
+    assert per_frame < 0.2, per_frame  # target well under 0.1 s; slack for a loaded machine
+
+
+def test_bad_poses_are_refused(clean_spec, vt) -> None:
+    with pytest.raises(ValueError, match="poses"):
+        render_frame(clean_spec, [])
+    with pytest.raises(ValueError, match="stations_m"):
+        BeamPose(0.0, np.array([0.0]), np.zeros(1), np.zeros(1))
+    with pytest.raises(ValueError, match="lateral_m"):
+        BeamPose(0.0, np.array([0.0, 1.0]), np.zeros(3), np.zeros(2))
+    with pytest.raises(ValueError, match="hub_width_m"):
+        vt.make_spec(hub_width_m=vt.W_M / 2)
