@@ -26,7 +26,8 @@ from pipelines.process.frames import MeasuredFrame, as_arrays, measure_frames
 from pipelines.process.free_decay import find_free_decay, simulate_release
 from pipelines.process.strain_shape import StrainShape, modal_curvature_shape
 from pipelines.progress import Progress
-from pipelines.results.schema import make_results, write_results
+from pipelines.results.dataset import make_results
+from pipelines.results.io import write_results
 from pipelines.rig import Rig, rig_from_json
 from sim.beam import BeamProperties
 from sim.drives import TraceDrive

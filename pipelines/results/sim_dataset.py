@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import uuid
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -14,6 +12,7 @@ import numpy as np
 import xarray as xr
 
 from pipelines import __version__
+from pipelines.atomic import atomic_path
 from sim.result import SimResult
 
 
@@ -174,11 +173,6 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
     """Write NetCDF4 (h5netcdf) to a temporary file beside ``path`` and rename it on
     success, so a failed run never clobbers an existing file."""
     out = check_output_path(path)
-    tmp = out.parent / f".{out.name}.{uuid.uuid4().hex}.tmp"
-    try:
+    with atomic_path(out) as tmp:
         ds.to_netcdf(tmp, engine="h5netcdf")
-        os.replace(tmp, out)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
     return out

@@ -19,11 +19,9 @@ the potentiometer zero does not shift them.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
-import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -33,15 +31,10 @@ import xarray as xr
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
 
-from pipelines.results.schema import (
-    VARIABLES,
-    error_table,
-    fig11_frames_mask,
-    format_value,
-    rig_json_of,
-    steady_state_mask,
-    summarise_errors,
-)
+from pipelines.atomic import atomic_path
+from pipelines.results.compare import rig_json_of, steady_state_mask, summarise_errors
+from pipelines.results.schema import VARIABLES
+from pipelines.review.display import error_table, fig11_frames_mask, format_value
 
 log = logging.getLogger(__name__)
 
@@ -95,23 +88,13 @@ def tip_positions_m(
 
 
 def _save(fig: Figure, path: Path) -> None:
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex}.tmp"
-    try:
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
 
 
 def _write_text(path: Path, text: str) -> None:
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex}.tmp"
-    try:
+    with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
 
 
 def _plot_strains(ds: xr.Dataset, path: Path) -> None:

@@ -25,7 +25,6 @@ Entity paths::
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
@@ -40,13 +39,8 @@ import rerun as rr
 import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
-from pipelines.results.schema import (
-    VARIABLES,
-    error_table,
-    fig11_frames_mask,
-    steady_state_mask,
-    summarise_errors,
-)
+from pipelines.atomic import discard, temp_path_beside
+from pipelines.review.display import run_view
 from pipelines.review.layout import (
     COLOUR_CENTRELINE,
     COLOUR_HUB,
@@ -206,8 +200,7 @@ class RunViewer:
         if not self._closed:
             self._finish()
         if self._tmp_path is not None:
-            with contextlib.suppress(FileNotFoundError):
-                self._tmp_path.unlink()
+            discard(self._tmp_path)
 
     # -- helpers ---------------------------------------------------------------------
 
@@ -473,37 +466,15 @@ class RunViewer:
 
     def log_results(self, ds: xr.Dataset) -> None:
         """Everything a results Dataset holds (see ``pipelines.results.schema``), and its error
-        summary as a markdown document."""
-        missing = [name for name in VARIABLES if name not in ds]
-        if missing:
-            raise ValueError(f"ds is not a results Dataset: missing {', '.join(missing)}")
-        t = np.asarray(ds["time"].values, dtype=np.float64)
-        ft = np.asarray(ds["frame_time"].values, dtype=np.float64)
-        rocker = np.asarray(ds["rocker_angle"].values, dtype=np.float64)
-        ok = np.asarray(ds["frame_ok"].values, dtype=bool)
-        image = np.where(ok, ds["tip_lateral"].values, np.nan)
-        self.log_samples(t, rocker, ds["strain"].values)
-        self.log_sim(t, ds["sim_tip_lateral"].values, ds["sim_strain"].values)
-        self.log_tip_deflection(ft, image, t, ds["tip_lateral_strain"].values)
-        # Fig. 11 on the potentiometer's angle for both, so a constant offset between
-        # the image frame and the potentiometer zero does not shift the points.
-        hub_at_frames = np.interp(ft, t, rocker, left=np.nan, right=np.nan) if ft.size else ft
-        steady = steady_state_mask(ds)
-        points = fig11_frames_mask(ds)
-        sim_hub = ds["hub_angle_sim"].values if "hub_angle_sim" in ds else rocker
-        self.log_fig11(
-            hub_at_frames[points],
-            image[points],
-            np.asarray(sim_hub)[steady],
-            np.asarray(ds["sim_tip_lateral"].values)[steady],
+        summary as a markdown document (computed by :func:`pipelines.review.display.run_view`)."""
+        view = run_view(ds)
+        self.log_samples(view.t_s, view.rocker_angle_rad, view.strain)
+        self.log_sim(view.t_s, view.sim_tip_lateral_m, view.sim_strain)
+        self.log_tip_deflection(
+            view.frame_t_s, view.tip_lateral_image_m, view.t_s, view.tip_lateral_strain_m
         )
-        model = ds.attrs.get("sim_model", "?")
-        lines = [
-            f"# Simulation ({model}) against measurement",
-            "",
-            *error_table(summarise_errors(ds)),
-        ]
-        self.log_summary("\n".join(lines))
+        self.log_fig11(*view.fig11)
+        self.log_summary(view.summary_markdown)
 
 
 def _level(level: Any) -> str:
@@ -558,9 +529,7 @@ def open_viewer(
             raise ValueError(f"rrd_path {out} is a folder, expected a .rrd file path")
         if not out.parent.is_dir():
             raise ValueError(f"rrd_path {out}: folder {out.parent} does not exist")
-        # A fresh name beside the target (same file system, so the rename is atomic);
-        # not mkstemp, whose 0600 mode would stick to the renamed file.
-        tmp = out.parent / f".{out.name}.{uuid.uuid4().hex}.tmp"
+        tmp = temp_path_beside(out)
         rec.save(tmp, default_blueprint=blueprint)
         return RunViewer(rec, rrd_path=out, tmp_path=tmp)
     if spawn:

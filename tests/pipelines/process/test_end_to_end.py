@@ -16,7 +16,7 @@ import pytest
 
 from pipelines.demo import capture_synthetic, truth_notes
 from pipelines.process.run import process_run, write_processed
-from pipelines.results.schema import read_results
+from pipelines.results.io import read_results
 from pipelines.rig import Rig, load_rig
 
 DURATION_S = 4.0

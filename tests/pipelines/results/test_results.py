@@ -11,16 +11,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from pipelines.results.schema import (
-    COORDS,
-    REQUIRED_ATTRS,
-    VARIABLES,
-    make_results,
-    read_results,
-    steady_state_mask,
-    summarise_errors,
-    write_results,
-)
+from pipelines.results.compare import steady_state_mask, summarise_errors
+from pipelines.results.dataset import make_results
+from pipelines.results.io import read_results, write_results
+from pipelines.results.schema import COORDS, REQUIRED_ATTRS, VARIABLES
 from pipelines.rig import Rig
 
 FS_HZ = 400.0

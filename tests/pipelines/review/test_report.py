@@ -10,7 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
-from pipelines.results.schema import ERROR_METRICS, make_results, summarise_errors
+from pipelines.results.compare import ERROR_METRICS, summarise_errors
+from pipelines.results.dataset import make_results
 from pipelines.review.report import PLOTS, REPORT_NAME, tip_positions_m, write_report
 from pipelines.rig import Rig
 
@@ -135,7 +136,7 @@ def test_tip_positions_against_closed_forms() -> None:
 def test_a_run_without_usable_frames_still_gives_results_recording_and_report(
     tmp_path: Path, n_frames: int
 ) -> None:
-    from pipelines.results.schema import read_results, write_results
+    from pipelines.results.io import read_results, write_results
     from pipelines.review.viewer import open_viewer, rrd_entities
 
     t = np.arange(0, 5.0, 1 / FS_HZ)

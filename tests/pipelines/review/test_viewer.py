@@ -12,7 +12,8 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from pipelines.results.schema import make_results, summarise_errors
+from pipelines.results.compare import summarise_errors
+from pipelines.results.dataset import make_results
 from pipelines.review.viewer import FrameOverlay, open_viewer, rrd_entities
 from pipelines.rig import Rig
 
