@@ -95,7 +95,8 @@ def sim_dataset(
         }
     )
     if rig_json is not None:
-        ds.attrs["rig"] = rig_json
+        # `rig_json` as in a processed run's results; `rig` kept for files' existing readers
+        ds.attrs["rig_json"] = ds.attrs["rig"] = rig_json
     rest: dict[str, Any] = {}
     for key, value in (extras or {}).items():
         if isinstance(value, bool):
@@ -151,7 +152,8 @@ def modes_dataset(modes: Mapping[str, Any], *, rig_json: str | None = None) -> x
         }
     )
     if rig_json is not None:
-        ds.attrs["rig"] = rig_json
+        # `rig_json` as in a processed run's results; `rig` kept for files' existing readers
+        ds.attrs["rig_json"] = ds.attrs["rig"] = rig_json
     return ds
 
 
