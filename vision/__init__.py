@@ -4,6 +4,7 @@ only; imports neither ``sim`` nor ``daq``."""
 
 from vision.calibration import Calibration, load_calibration, plane_to_image_px
 from vision.codec import decode
+from vision.errors import VisionError
 from vision.measure import FrameMeasurement, Measurer
 from vision.registration import (
     calibration_from_registration,
@@ -15,6 +16,7 @@ __all__ = [
     "Calibration",
     "FrameMeasurement",
     "Measurer",
+    "VisionError",
     "calibration_from_registration",
     "decode",
     "detect_registration_corners",

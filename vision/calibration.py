@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.camera import as_points, check_intrinsics, distort_points_px, undistort_points_px
+from vision.errors import CalibrationError, ParameterError
 from vision.homography import (
     MAX_CONDITION,
     HomographyFit,
@@ -63,17 +64,17 @@ class Calibration:
         img = as_points(self.image_points_px, "image_points_px")
         pln = as_points(self.plane_points_m, "plane_points_m")
         if img.shape != pln.shape:
-            raise ValueError(
-                "image_points_px and plane_points_m must have the same shape, "
-                f"got {img.shape} and {pln.shape}"
+            raise ParameterError(
+                "image_points_px and plane_points_m",
+                f"must have the same shape, got {img.shape} and {pln.shape}",
             )
         k, d = check_intrinsics(self.camera_matrix, self.distortion)
         for name in ("beam_length_m", "beam_width_m"):
             v = getattr(self, name)
             if not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a positive number, got {v!r}")
+                raise ParameterError(name, f"must be a positive number, got {v!r}")
         if self.beam_width_m >= self.beam_length_m:
-            raise ValueError("beam_width_m must be smaller than beam_length_m")
+            raise ParameterError("beam_width_m", "must be smaller than beam_length_m")
         object.__setattr__(self, "image_points_px", img)
         object.__setattr__(self, "plane_points_m", pln)
         object.__setattr__(self, "camera_matrix", k)
@@ -82,16 +83,17 @@ class Calibration:
         try:
             fit = collineation_4pt(ideal, pln) if len(img) == 4 else dlt_homography(ideal, pln)
         except ValueError as exc:
-            raise ValueError(f"registration: {exc}") from None
+            raise CalibrationError(str(exc), section="registration") from None
         if not fit.condition < MAX_CONDITION:
-            raise ValueError(
-                f"registration: the homography is badly conditioned (condition {fit.condition:.3g})"
+            raise CalibrationError(
+                f"the homography is badly conditioned (condition {fit.condition:.3g})",
+                section="registration",
             )
         w = ideal @ fit.matrix[2, :2] + fit.matrix[2, 2]
         if not (np.all(w > 0) or np.all(w < 0)):
-            raise ValueError(
-                "registration: the points are not in a consistent order "
-                "(the plane's horizon crosses them)"
+            raise CalibrationError(
+                "the points are not in a consistent order (the plane's horizon crosses them)",
+                section="registration",
             )
         object.__setattr__(self, "fit", fit)
 
@@ -138,32 +140,34 @@ def plane_to_image_px(points_m: ArrayLike, calibration: Calibration) -> NDArray[
 def calibration_from_dict(data: Any) -> Calibration:
     """Build a :class:`Calibration` from the parsed CAL.json structure."""
     if not isinstance(data, dict):
-        raise ValueError("the top level must be an object")
+        raise CalibrationError("the top level must be an object")
     unknown = set(data) - {"registration", "camera", "beam"}
     if unknown:
-        raise ValueError(f"unknown key(s) {sorted(unknown)}")
+        raise CalibrationError(f"unknown key(s) {sorted(unknown)}")
     reg = data.get("registration")
     if not isinstance(reg, dict):
-        raise ValueError("'registration' object is missing")
+        raise CalibrationError("'registration' object is missing")
     for key in ("image_points_px", "plane_points_m"):
         if key not in reg:
-            raise ValueError(f"registration.{key} is missing")
+            raise CalibrationError(f"registration.{key} is missing")
     cam = data.get("camera", {}) or {}
     beam = data.get("beam", {}) or {}
     if not isinstance(cam, dict) or not isinstance(beam, dict):
-        raise ValueError("'camera' and 'beam' must be objects")
+        raise CalibrationError("'camera' and 'beam' must be objects")
     try:
         img = np.asarray(reg["image_points_px"], dtype=np.float64)
         pln = np.asarray(reg["plane_points_m"], dtype=np.float64)
         matrix = None if cam.get("matrix") is None else np.asarray(cam["matrix"], float)
         dist = None if cam.get("distortion") is None else np.asarray(cam["distortion"], float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"a point list or camera array is not numeric ({exc})") from None
+        raise CalibrationError(f"a point list or camera array is not numeric ({exc})") from None
     if len(img) < 4:
-        raise ValueError(f"registration.image_points_px needs 4 or more points, got {len(img)}")
+        raise CalibrationError(
+            f"registration.image_points_px needs 4 or more points, got {len(img)}"
+        )
     for key in beam:
         if key not in ("length_m", "width_m"):
-            raise ValueError(f"unknown key beam.{key}")
+            raise CalibrationError(f"unknown key beam.{key}")
     return Calibration(
         image_points_px=img,
         plane_points_m=pln,
@@ -175,15 +179,17 @@ def calibration_from_dict(data: Any) -> Calibration:
 
 
 def load_calibration(path: str | Path) -> Calibration:
-    """Read CAL.json; raises ``ValueError`` with the reason (not naming the file)."""
+    """Read CAL.json; raises :class:`~vision.errors.CalibrationError` (or, for a bad
+    value, :class:`~vision.errors.ParameterError`; both ``ValueError``) with the reason,
+    not naming the file."""
     try:
         text = Path(path).read_text("utf-8")
     except FileNotFoundError:
-        raise ValueError("no such file") from None
+        raise CalibrationError("no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot be read ({exc})") from None
+        raise CalibrationError(f"cannot be read ({exc})") from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"not valid JSON ({exc})") from None
+        raise CalibrationError(f"not valid JSON ({exc})") from None
     return calibration_from_dict(data)

@@ -6,18 +6,21 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import DecodeError
+
 
 def decode(data: bytes) -> NDArray[np.uint8]:
     """Decode compressed image bytes to a uint8 gray [row, col] array.
 
-    Raises ``ValueError`` when the bytes are not a readable image.
+    Raises :class:`~vision.errors.DecodeError` (a ``ValueError``) when the bytes are not
+    a readable image.
     """
     if not isinstance(data, bytes | bytearray | memoryview):
         raise TypeError(f"data must be bytes, got {type(data).__name__}")
     buf = np.frombuffer(bytes(data), dtype=np.uint8)
     if buf.size == 0:
-        raise ValueError("empty image data")
-    # OpenCV warns on stderr about damaged data; the ValueError below says it once, so
+        raise DecodeError(0)
+    # OpenCV warns on stderr about damaged data; the DecodeError below says it once, so
     # the caller's single error line is not preceded by a library's.
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
@@ -26,7 +29,7 @@ def decode(data: bytes) -> NDArray[np.uint8]:
     finally:
         cv2.utils.logging.setLogLevel(level)
     if img is None:
-        raise ValueError("not a readable image (JPEG/PNG/...)")
+        raise DecodeError(buf.size)
     if img.dtype != np.uint8:
         img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
     return np.ascontiguousarray(img)

@@ -35,8 +35,9 @@ from vision.centreline import (
     stations_to_a,
 )
 from vision.edges import strip_edges_many
+from vision.errors import FrameFailure, ParameterError
 from vision.homography import apply_homography
-from vision.locate import FrameFailure, Rough, locate, search_circles
+from vision.locate import Rough, locate, search_circles
 from vision.sampling import bilinear, median
 
 log = logging.getLogger(__name__)
@@ -134,10 +135,10 @@ class Measurer:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
         if method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+            raise ParameterError("method", f"must be one of {METHODS}, got {method!r}")
         st = np.asarray(stations_m, dtype=np.float64).ravel()
         if not np.all(np.isfinite(st)) or np.any(st < 0) or np.any(st > calibration.beam_length_m):
-            raise ValueError("stations_m must lie on the beam (0 .. beam_length_m)")
+            raise ParameterError("stations_m", "must lie on the beam (0 .. beam_length_m)")
         self.calibration = calibration
         self.stations_m = st
         self.method = method
@@ -154,7 +155,7 @@ class Measurer:
         nb = self.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
         self.px_m = float(np.mean(np.linalg.norm(nb - 0.0, axis=1)))
         if not math.isfinite(self.px_m) or self.px_m <= 0:
-            raise ValueError("calibration: the pivot does not map into the image plane")
+            raise ParameterError("calibration", "does not map the pivot into the image plane")
         # The search circles for the beam are fixed in the plane: mapped once.
         self._circles = (
             search_circles(
@@ -191,7 +192,7 @@ class Measurer:
                 return measure_paper(self, image_gray)
             return self._measure_default(image_gray)
         except FrameFailure as exc:
-            return self._fail(str(exc))
+            return self._fail(exc.reason)
         except (ValueError, np.linalg.LinAlgError, IndexError, FloatingPointError) as exc:
             log.warning("frame measurement failed unexpectedly: %s", exc)
             return self._fail(f"measurement failed ({exc})")

@@ -18,7 +18,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.locate import FrameFailure, locate
+from vision.errors import FrameFailure
+from vision.locate import locate
 
 if TYPE_CHECKING:
     from vision.measure import FrameMeasurement, Measurer

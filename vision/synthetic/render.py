@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from vision.camera import camera_matrix, distort_normalized, undistort_points_px
 from vision.codec import decode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
+from vision.errors import BehindCameraError, EncodeError, ParameterError
 from vision.homography import apply_homography
 from vision.synthetic.pose import camera_extrinsics, ideal_from_plane
 
@@ -64,14 +65,14 @@ class BeamPose:
     def __post_init__(self) -> None:
         s = np.asarray(self.stations_m, dtype=np.float64).ravel()
         if s.size < 2 or np.any(np.diff(s) <= 0) or not np.all(np.isfinite(s)):
-            raise ValueError("stations_m must hold 2 or more finite ascending stations")
+            raise ParameterError("stations_m", "must hold 2 or more finite ascending stations")
         for name in ("lateral_m", "longitudinal_m"):
             v = np.asarray(getattr(self, name), dtype=np.float64).ravel()
             if v.shape != s.shape or not np.all(np.isfinite(v)):
-                raise ValueError(f"{name} must be finite with the shape of stations_m {s.shape}")
+                raise ParameterError(name, f"must be finite with the shape of stations_m {s.shape}")
             object.__setattr__(self, name, v)
         if not math.isfinite(self.hub_angle_rad):
-            raise ValueError("hub_angle_rad must be finite")
+            raise ParameterError("hub_angle_rad", "must be finite")
         object.__setattr__(self, "stations_m", s)
 
     @classmethod
@@ -162,13 +163,15 @@ class SceneSpec:
         for name in ("beam_length_m", "beam_width_m", "hub_length_m", "hub_width_m"):
             v = getattr(self, name)
             if not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be positive, got {v!r}")
+                raise ParameterError(name, f"must be positive, got {v!r}")
         if self.hub_width_m <= self.beam_width_m:
-            raise ValueError("hub_width_m must exceed beam_width_m (the hub is the wider bar)")
+            raise ParameterError(
+                "hub_width_m", "must exceed beam_width_m (the hub is the wider bar)"
+            )
         if self.noise_dn < 0 or self.blur_sigma_px < 0:
-            raise ValueError("noise_dn and blur_sigma_px must be >= 0")
+            raise ParameterError("noise_dn and blur_sigma_px", "must be >= 0")
         if not 1 <= self.supersample <= 16:
-            raise ValueError(f"supersample must be in 1..16, got {self.supersample}")
+            raise ParameterError("supersample", f"must be in 1..16, got {self.supersample}")
 
     @classmethod
     def from_rig(
@@ -218,7 +221,7 @@ class SceneSpec:
         r, t = camera_extrinsics(self.pose)
         cam = pts @ r[:, :2].T + t
         if np.any(cam[:, 2] <= 0):
-            raise ValueError("a point lies behind the camera")
+            raise BehindCameraError()
         return distort_normalized(cam[:, :2] / cam[:, 2:3], self.camera_matrix, self.distortion)
 
     def registration_points_m(self) -> NDArray[np.float64]:
@@ -345,7 +348,7 @@ def _draw_convex(
     h, w = refl.shape
     try:
         px = spec.plane_to_image_px(corners_m)
-    except ValueError:
+    except BehindCameraError:
         return
     x0, y0 = np.floor(px.min(axis=0)).astype(int) - 3
     x1, y1 = np.ceil(px.max(axis=0)).astype(int) + 4
@@ -497,7 +500,7 @@ def _band_mask(spec: SceneSpec, shapes: list[_Shape], margin_m: float) -> NDArra
         for poly in (poly_m, hub_m):
             try:
                 px = spec.plane_to_image_px(poly)
-            except ValueError:
+            except BehindCameraError:
                 continue
             px = np.clip(px, -4 * w, 5 * w)
             cv2.fillPoly(mask, [np.round(px * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
@@ -520,7 +523,7 @@ def render_frame(
     RenderedFrame with ``image`` uint8 [row, col] (height_px x width_px) and ``truth``.
     """
     if len(poses) == 0:
-        raise ValueError("poses must hold at least one BeamPose")
+        raise ParameterError("poses", "must hold at least one BeamPose")
     for i, p in enumerate(poses):
         if not isinstance(p, BeamPose):
             raise TypeError(f"poses[{i}] must be a BeamPose, got {type(p).__name__}")
@@ -631,12 +634,12 @@ def encode(image: NDArray[np.uint8], encoding: str = "jpeg", quality: int = 90) 
         raise TypeError("image must be a uint8 [row, col] numpy array")
     if encoding == "jpeg":
         if not 1 <= quality <= 100:
-            raise ValueError(f"quality must be in 1..100, got {quality!r}")
+            raise ParameterError("quality", f"must be in 1..100, got {quality!r}")
         ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     elif encoding == "png":
         ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     else:
-        raise ValueError(f"encoding must be 'jpeg' or 'png', got {encoding!r}")
+        raise ParameterError("encoding", f"must be 'jpeg' or 'png', got {encoding!r}")
     if not ok:
-        raise ValueError("the image could not be encoded")
+        raise EncodeError(encoding)
     return bytes(buf)
