@@ -3,7 +3,7 @@ extraction, hub angle and deflection, and the scene renderer. numpy/scipy/OpenCV
 only; imports neither ``sim`` nor ``daq``."""
 
 from vision.calibration import Calibration, load_calibration, plane_to_image_px
-from vision.codec import decode
+from vision.codec import decode, encode
 from vision.errors import VisionError
 from vision.measure import FrameMeasurement, Measurer
 from vision.registration import (
@@ -21,6 +21,7 @@ __all__ = [
     "decode",
     "detect_registration_corners",
     "detect_registration_points",
+    "encode",
     "load_calibration",
     "plane_to_image_px",
 ]

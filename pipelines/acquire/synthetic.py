@@ -30,7 +30,8 @@ from sim.beam import BeamProperties
 from sim.drives import FourBarDrive
 from sim.four_bar import FourBar
 from sim.result import SimResult
-from vision.synthetic.render import BeamPose, SceneSpec, encode, render_frame
+from vision.codec import encode
+from vision.synthetic.render import BeamPose, SceneSpec, render_frame
 
 log = logging.getLogger(__name__)
 

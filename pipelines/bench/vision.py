@@ -29,9 +29,10 @@ from vision import (
     decode,
     detect_registration_corners,
 )
+from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.measure import METHODS
-from vision.synthetic.render import BeamPose, Clutter, RenderTruth, SceneSpec, encode, render_frame
+from vision.synthetic.render import BeamPose, Clutter, RenderTruth, SceneSpec, render_frame
 
 L_M, W_M = 0.835, 0.01905
 STROKE_DEG = (243.0, 330.0)

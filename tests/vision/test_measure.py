@@ -12,8 +12,9 @@ from vision import (
     detect_registration_corners,
     plane_to_image_px,
 )
+from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.synthetic.render import BeamPose, Clutter, encode, render_frame
+from vision.synthetic.render import BeamPose, Clutter, render_frame
 
 
 def _errors(m, tr) -> tuple[float, float, float]:

@@ -24,9 +24,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.camera import camera_matrix, distort_normalized, undistort_points_px
-from vision.codec import decode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.errors import BehindCameraError, EncodeError, ParameterError
+from vision.errors import BehindCameraError, ParameterError
 from vision.homography import apply_homography
 from vision.synthetic.pose import camera_extrinsics, ideal_from_plane
 
@@ -36,8 +35,6 @@ __all__ = [
     "RenderTruth",
     "RenderedFrame",
     "SceneSpec",
-    "decode",
-    "encode",
     "render_frame",
 ]
 
@@ -626,20 +623,3 @@ def _truth(spec: SceneSpec, poses: Sequence[BeamPose], shapes: list[_Shape]) -> 
         clamp_plane_m=clamp,
         tip_plane_m=tip,
     )
-
-
-def encode(image: NDArray[np.uint8], encoding: str = "jpeg", quality: int = 90) -> bytes:
-    """Compress a uint8 gray [row, col] image as JPEG (``quality`` 1-100) or PNG."""
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 2:
-        raise TypeError("image must be a uint8 [row, col] numpy array")
-    if encoding == "jpeg":
-        if not 1 <= quality <= 100:
-            raise ParameterError("quality", f"must be in 1..100, got {quality!r}")
-        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
-    elif encoding == "png":
-        ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    else:
-        raise ParameterError("encoding", f"must be 'jpeg' or 'png', got {encoding!r}")
-    if not ok:
-        raise EncodeError(encoding)
-    return bytes(buf)

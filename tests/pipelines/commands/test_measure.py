@@ -10,8 +10,9 @@ import pytest
 
 from pipelines.cli import main
 from vision import Calibration
+from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.synthetic.render import BeamPose, SceneSpec, encode, render_frame
+from vision.synthetic.render import BeamPose, SceneSpec, render_frame
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,8 @@ import time
 import numpy as np
 import pytest
 
-from vision.codec import decode
-from vision.synthetic.render import BeamPose, encode, render_frame
+from vision.codec import encode
+from vision.synthetic.render import BeamPose, render_frame
 
 
 def test_straight_beam_centre_line_matches_the_geometry(clean_spec, vt) -> None:
@@ -59,20 +59,10 @@ def test_registration_corners_in_truth_are_dark_light_corners(clean_spec, vt) ->
         assert img[round(out[1]), round(out[0])] > 150
 
 
-def test_noise_level_and_encoding_round_trip(nominal_spec, vt) -> None:
+def test_noise_level(nominal_spec, vt) -> None:
     frame = render_frame(nominal_spec, [BeamPose.straight(4.5, vt.L_M)])
     patch = frame.image[1400:1500, 100:300].astype(float)
     assert patch.std() == pytest.approx(2.0, rel=0.15)
-    png = decode(encode(frame.image, "png"))
-    np.testing.assert_array_equal(png, frame.image)
-    jpg = decode(encode(frame.image, "jpeg", quality=90))
-    assert np.abs(jpg.astype(float) - frame.image).mean() < 2.0
-    with pytest.raises(ValueError, match="encoding"):
-        encode(frame.image, "gif")
-    with pytest.raises(TypeError):
-        encode(frame.image.astype(float))  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="not a readable image"):
-        decode(b"not an image")
 
 
 def test_motion_blur_spreads_the_beam(clean_spec, vt) -> None:
