@@ -2,7 +2,7 @@
 extraction, hub angle and deflection, and the scene renderer. numpy/scipy/OpenCV
 only; imports neither ``sim`` nor ``daq``."""
 
-from vision.calibration import Calibration, load_calibration, plane_to_image_px
+from vision.calibration import Calibration, load_calibration
 from vision.codec import decode, encode
 from vision.errors import VisionError
 from vision.measure import FrameMeasurement, Measurer
@@ -23,5 +23,4 @@ __all__ = [
     "detect_registration_points",
     "encode",
     "load_calibration",
-    "plane_to_image_px",
 ]

@@ -5,6 +5,11 @@ metres), optional intrinsics and lens distortion, and the beam's length and widt
 homography maps *undistorted* pixels to the plane; with four pairs it is the paper's
 exact collineation (Eqs. 42-46), with more the normalized DLT.
 
+The plane <-> pixel mapping (homography and lens distortion) is written once, here:
+:meth:`Calibration.to_px` / :meth:`Calibration.to_plane`, which are :func:`plane_to_px` /
+:func:`px_to_plane` with the calibration's homography and lens. The synthetic camera
+projects through :func:`plane_to_px` too, with its true pose's homography.
+
 CAL.json layout::
 
     {"registration": {"image_points_px": [[x, y], ...], "plane_points_m": [[X, Y], ...]},
@@ -25,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vision.camera import as_points, check_intrinsics, distort_points_px, undistort_points_px
+from vision.camera import Lens, as_points, check_intrinsics, undistort_points_px
 from vision.errors import CalibrationError, ParameterError
 from vision.homography import (
     MAX_CONDITION,
@@ -50,6 +55,9 @@ class Calibration:
     camera_matrix : (3, 3) intrinsics or None (no distortion correction).
     distortion : OpenCV coefficients (k1, k2, p1, p2[, k3...]) or None.
     beam_length_m, beam_width_m : free length (clamp to tip) and width of the beam, m.
+
+    Map points with :meth:`to_px` (plane to raw pixels) and :meth:`to_plane` (raw pixels
+    to plane), lens distortion included when the calibration has it.
     """
 
     image_points_px: NDArray[np.float64]
@@ -59,6 +67,8 @@ class Calibration:
     beam_length_m: float = DEFAULT_BEAM_LENGTH_M
     beam_width_m: float = DEFAULT_BEAM_WIDTH_M
     fit: HomographyFit = field(init=False, repr=False)
+    _ideal_from_plane: NDArray[np.float64] = field(init=False, repr=False)
+    _lens: Lens = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         img = as_points(self.image_points_px, "image_points_px")
@@ -96,16 +106,21 @@ class Calibration:
                 section="registration",
             )
         object.__setattr__(self, "fit", fit)
+        object.__setattr__(self, "_ideal_from_plane", np.linalg.inv(fit.matrix))
+        object.__setattr__(self, "_lens", Lens(k, d))
 
     @property
     def plane_from_ideal(self) -> NDArray[np.float64]:
         """(3, 3) homography from undistorted pixels to beam-plane metres."""
         return self.fit.matrix
 
-    def image_to_plane_m(self, points_px: ArrayLike) -> NDArray[np.float64]:
-        """Raw pixel points (N, 2) to beam-plane points (N, 2), m."""
-        ideal = undistort_points_px(points_px, self.camera_matrix, self.distortion)
-        return apply_homography(self.fit.matrix, ideal)
+    def to_px(self, points_m: ArrayLike) -> NDArray[np.float64]:
+        """Beam-plane points (N, 2), m, to raw (distorted) image pixels (N, 2), (x, y)."""
+        return plane_to_px(points_m, self._ideal_from_plane, self._lens)
+
+    def to_plane(self, points_px: ArrayLike) -> NDArray[np.float64]:
+        """Raw image pixels (N, 2), (x, y), to beam-plane points (N, 2), m."""
+        return px_to_plane(points_px, self.fit.matrix, self._lens)
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -129,12 +144,22 @@ class Calibration:
         return json.dumps(self.to_dict(), indent=2)
 
 
-def plane_to_image_px(points_m: ArrayLike, calibration: Calibration) -> NDArray[np.float64]:
-    """Beam-plane points (N, 2), m, to raw image pixels (N, 2) through the homography
-    and the lens distortion (for overlays)."""
-    pts = as_points(np.asarray(points_m, dtype=np.float64).reshape(-1, 2), "points_m")
-    ideal = apply_homography(np.linalg.inv(calibration.fit.matrix), pts)
-    return distort_points_px(ideal, calibration.camera_matrix, calibration.distortion)
+def plane_to_px(
+    points_m: ArrayLike, ideal_from_plane: NDArray[np.float64], lens: Lens
+) -> NDArray[np.float64]:
+    """Beam-plane points (N, 2), m, to raw image pixels (N, 2): the homography
+    ``ideal_from_plane`` (3, 3) to undistorted pixels, then the ``lens``."""
+    ideal = apply_homography(ideal_from_plane, points_m)
+    return ideal if lens.identity else lens.distort(ideal)
+
+
+def px_to_plane(
+    points_px: ArrayLike, plane_from_ideal: NDArray[np.float64], lens: Lens
+) -> NDArray[np.float64]:
+    """Raw image pixels (N, 2) to beam-plane points (N, 2), m: the ``lens`` undone, then
+    the homography ``plane_from_ideal`` (3, 3). The inverse of :func:`plane_to_px`."""
+    ideal = points_px if lens.identity else lens.undistort(np.asarray(points_px, np.float64))
+    return apply_homography(plane_from_ideal, ideal)
 
 
 def calibration_from_dict(data: Any) -> Calibration:

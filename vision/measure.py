@@ -26,7 +26,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.calibration import Calibration
-from vision.camera import Lens
 from vision.centreline import (
     CentreLine,
     arc_length,
@@ -36,7 +35,6 @@ from vision.centreline import (
 )
 from vision.edges import strip_edges_many
 from vision.errors import FrameFailure, ParameterError
-from vision.homography import apply_homography
 from vision.locate import Rough, locate, search_circles
 from vision.sampling import bilinear, median
 
@@ -147,34 +145,20 @@ class Measurer:
         self.edge_estimator = edge_estimator
         self.max_root_slope_rad = float(max_root_slope_rad)
         self.max_tip_std_m = float(max_tip_std_m)
-        self._h = calibration.fit.matrix
-        self._h_inv = np.linalg.inv(self._h)
-        self._lens = Lens(calibration.camera_matrix, calibration.distortion)
         # Plane size of a pixel about the pivot (search step sizes are set from it).
-        pivot_px = self.to_px(np.zeros((1, 2)))[0]
-        nb = self.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
+        pivot_px = calibration.to_px(np.zeros((1, 2)))[0]
+        nb = calibration.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
         self.px_m = float(np.mean(np.linalg.norm(nb - 0.0, axis=1)))
         if not math.isfinite(self.px_m) or self.px_m <= 0:
             raise ParameterError("calibration", "does not map the pivot into the image plane")
         # The search circles for the beam are fixed in the plane: mapped once.
         self._circles = (
             search_circles(
-                self.to_px, calibration.beam_length_m, calibration.beam_width_m, self.px_m
+                calibration.to_px, calibration.beam_length_m, calibration.beam_width_m, self.px_m
             )
             if method == "default"
             else None
         )
-
-    # -- mappings ---------------------------------------------------------------------
-    def to_px(self, points_m: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Plane points (N, 2) m -> raw pixels (N, 2)."""
-        ideal = apply_homography(self._h_inv, points_m)
-        return ideal if self._lens.identity else self._lens.distort(ideal)
-
-    def to_plane(self, points_px: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Raw pixels (N, 2) -> plane points (N, 2) m."""
-        ideal = points_px if self._lens.identity else self._lens.undistort(points_px)
-        return apply_homography(self._h, ideal)
 
     # -- entry point --------------------------------------------------------------------
     def measure(self, image_gray: NDArray[np.uint8]) -> FrameMeasurement:
@@ -211,7 +195,7 @@ class Measurer:
     def _measure_default(self, image: NDArray[np.uint8]) -> FrameMeasurement:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
-        rough = locate(image, self.to_px, length, w_beam, self.px_m, self._circles)
+        rough = locate(image, cal.to_px, length, w_beam, self.px_m, self._circles)
         # The hub's axis, first through the rough centres of its cross-profiles: enough
         # to place the searches for its end faces, whose lines lie symmetrically about it.
         e, n, axis_b = _rough_axis(rough)
@@ -272,7 +256,7 @@ class Measurer:
         b_line[-1] = b_tip
         line_m = clamp[None, :] + a_line[:, None] * e[None, :] + b_line[:, None] * n[None, :]
         back = clamp + back_a * e
-        hub_px = self.to_px(np.vstack([back, clamp]))
+        hub_px = cal.to_px(np.vstack([back, clamp]))
         return FrameMeasurement(
             ok=True,
             hub_angle_rad=float(math.atan2(e[1], e[0]) % (2 * math.pi)),
@@ -281,7 +265,7 @@ class Measurer:
             stations_m=self.stations_m.copy(),
             lateral_at_stations_m=np.asarray(lat_st, dtype=np.float64),
             centreline_plane_m=line_m,
-            centreline_px=self.to_px(line_m),
+            centreline_px=cal.to_px(line_m),
             hub_line_px=hub_px,
             clamp_plane_m=clamp,
             tip_plane_m=line_m[-1].copy(),
@@ -309,7 +293,7 @@ class Measurer:
             t /= np.hypot(t[:, 0], t[:, 1])[:, None]
             lines.append(line_m)
             offsets.append(line_m + half_m * np.column_stack([-t[:, 1], t[:, 0]]))
-        both = self.to_px(np.vstack(lines + offsets))
+        both = self.calibration.to_px(np.vstack(lines + offsets))
         sizes = np.cumsum([0] + [len(x) for x in lines])
         px, off = both[: sizes[-1]], both[sizes[-1] :]
         across = np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
@@ -324,7 +308,7 @@ class Measurer:
                 raise FrameFailure("too few edge points (strip not visible)")
             keep = edges.contrast > 0.35 * median(edges.contrast)
             kept.append((edges.side_a[keep], edges.side_b[keep], edges.spread[keep]))
-        plane = self.to_plane(np.vstack([p for a, b, _ in kept for p in (a, b)]))
+        plane = self.calibration.to_plane(np.vstack([p for a, b, _ in kept for p in (a, b)]))
         out, i = [], 0
         for a, _b, spread in kept:
             out.append((plane[i : i + len(a)], plane[i + len(a) : i + 2 * len(a)], spread))
@@ -430,7 +414,9 @@ class Measurer:
         pts = np.empty((len(lateral), len(t), 2))
         for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
             pts[:, :, c] = (origin[c] + t[None, :] * e[c]) + lateral[:, None] * n[c]
-        v = bilinear(image, self.to_px(pts.reshape(-1, 2))).reshape(len(lateral), len(t))
+        v = bilinear(image, self.calibration.to_px(pts.reshape(-1, 2))).reshape(
+            len(lateral), len(t)
+        )
         if not np.all(np.isfinite(v)):
             raise FrameFailure("clamp or tip outside the image")
         prof = v.mean(axis=0)

@@ -122,8 +122,8 @@ def _framing(
             cam, pose, reg, beam_length_m=L_M, beam_width_m=W_M, hub_offset_m=0.008
         )
         try:
-            px = spec.plane_to_image_px(pts)
-            tip_px = spec.plane_to_image_px(np.array([tip, tip + 0.001 * n]))
+            px = spec.to_px(pts)
+            tip_px = spec.to_px(np.array([tip, tip + 0.001 * n]))
         except ValueError:
             continue
         inside = np.all(px > 30) and np.all(px[:, 0] < cam.width_px - 30)

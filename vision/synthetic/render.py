@@ -23,7 +23,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vision.camera import camera_matrix, distort_normalized, undistort_points_px
+from vision.calibration import plane_to_px
+from vision.camera import Lens, camera_matrix, undistort_points_px
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.errors import BehindCameraError, ParameterError
 from vision.homography import apply_homography
@@ -212,14 +213,17 @@ class SceneSpec:
         r, t = camera_extrinsics(self.pose)
         return ideal_from_plane(self.camera_matrix, r, t)
 
-    def plane_to_image_px(self, points_m: ArrayLike) -> NDArray[np.float64]:
-        """Exact projection of beam-plane points (N, 2), m, to raw pixels (N, 2)."""
+    def to_px(self, points_m: ArrayLike) -> NDArray[np.float64]:
+        """Exact projection of beam-plane points (N, 2), m, to raw pixels (N, 2): the
+        calibration's mapping (:func:`vision.calibration.plane_to_px`) with the true
+        pose's homography. Raises :class:`~vision.errors.BehindCameraError` for a point
+        the camera cannot see."""
         pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
         r, t = camera_extrinsics(self.pose)
-        cam = pts @ r[:, :2].T + t
-        if np.any(cam[:, 2] <= 0):
+        if np.any(pts @ r[2, :2] + t[2] <= 0):
             raise BehindCameraError()
-        return distort_normalized(cam[:, :2] / cam[:, 2:3], self.camera_matrix, self.distortion)
+        k = self.camera_matrix
+        return plane_to_px(pts, ideal_from_plane(k, r, t), Lens(k, self.distortion))
 
     def registration_points_m(self) -> NDArray[np.float64]:
         """(4, 2) corners of the registration square, CCW in the plane, starting at the
@@ -344,7 +348,7 @@ def _draw_convex(
     """Paint a convex plane polygon into ``refl`` with supersampled edges."""
     h, w = refl.shape
     try:
-        px = spec.plane_to_image_px(corners_m)
+        px = spec.to_px(corners_m)
     except BehindCameraError:
         return
     x0, y0 = np.floor(px.min(axis=0)).astype(int) - 3
@@ -496,7 +500,7 @@ def _band_mask(spec: SceneSpec, shapes: list[_Shape], margin_m: float) -> NDArra
         )
         for poly in (poly_m, hub_m):
             try:
-                px = spec.plane_to_image_px(poly)
+                px = spec.to_px(poly)
             except BehindCameraError:
                 continue
             px = np.clip(px, -4 * w, 5 * w)
@@ -616,7 +620,7 @@ def _truth(spec: SceneSpec, poses: Sequence[BeamPose], shapes: list[_Shape]) -> 
         tip_longitudinal_m=tip_lon,
         stations_m=st_m,
         lateral_at_stations_m=lat_st,
-        corners_px=spec.plane_to_image_px(plane_pts),
+        corners_px=spec.to_px(plane_pts),
         plane_points_m=plane_pts,
         camera_matrix=spec.camera_matrix,
         distortion=spec.distortion,

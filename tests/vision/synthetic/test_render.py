@@ -18,7 +18,7 @@ def test_straight_beam_centre_line_matches_the_geometry(clean_spec, vt) -> None:
     img = frame.image.astype(float)
     e = np.array([math.cos(th), math.sin(th)])
     a = np.array([0.3, 0.7])
-    ends = clean_spec.plane_to_image_px(a[:, None] * e)
+    ends = clean_spec.to_px(a[:, None] * e)
     bg = clean_spec.background_dn
     errs = []
     for x in range(int(ends[0, 0]) + 5, int(ends[1, 0]) - 5, 7):
