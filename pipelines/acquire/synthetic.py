@@ -32,7 +32,8 @@ from sim.four_bar import FourBar
 from sim.result import SimResult
 from vision.camera import camera_matrix
 from vision.codec import encode
-from vision.synthetic.render import BeamPose, SceneSpec, render_frame
+from vision.synthetic.render import render_frame
+from vision.synthetic.scene import BeamPose, SceneSpec
 
 log = logging.getLogger(__name__)
 

@@ -32,7 +32,8 @@ from vision import (
 from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.measure import METHODS
-from vision.synthetic.render import BeamPose, Clutter, RenderTruth, SceneSpec, render_frame
+from vision.synthetic.render import render_frame
+from vision.synthetic.scene import BeamPose, Clutter, RenderTruth, SceneSpec
 
 L_M, W_M = 0.835, 0.01905
 STROKE_DEG = (243.0, 330.0)

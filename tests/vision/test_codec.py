@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from vision.codec import decode, encode
-from vision.synthetic.render import BeamPose, render_frame
+from vision.synthetic.render import render_frame
+from vision.synthetic.scene import BeamPose
 
 
 def test_encoding_round_trip(nominal_spec, vt) -> None:

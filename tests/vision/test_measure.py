@@ -13,7 +13,8 @@ from vision import (
 )
 from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.synthetic.render import BeamPose, Clutter, render_frame
+from vision.synthetic.render import render_frame, static_layers
+from vision.synthetic.scene import BeamPose, Clutter
 
 
 def _errors(m, tr) -> tuple[float, float, float]:
@@ -66,7 +67,7 @@ def test_bad_frames_give_ok_false_with_a_reason(nominal_spec, vt) -> None:
     m = Measurer(vt.truth_calibration(frame.truth))
     black = m.measure(np.zeros_like(frame.image))
     assert not black.ok and "blank" in black.reason and math.isnan(black.tip_lateral_m)
-    empty = np.clip(nominal_spec._static()["lit"], 0, 255).astype(np.uint8)
+    empty = np.clip(static_layers(nominal_spec)["lit"], 0, 255).astype(np.uint8)
     no_beam = m.measure(empty)
     assert not no_beam.ok and "no beam" in no_beam.reason
     assert np.all(np.isnan(no_beam.lateral_at_stations_m))
