@@ -1,12 +1,10 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
 
-from vision.codec import encode
 from vision.synthetic.render import render_frame
 from vision.synthetic.scene import BeamPose
 
@@ -60,16 +58,6 @@ def test_motion_blur_spreads_the_beam(clean_spec, vt) -> None:
     blurred = render_frame(clean_spec, poses).image
     assert np.count_nonzero(blurred > 100) > np.count_nonzero(sharp > 100)
     assert np.abs(blurred.astype(int) - sharp).max() > 50
-
-
-def test_rendering_is_fast(nominal_spec, vt) -> None:
-    pose = vt.bent(math.radians(300), 0.05)
-    render_frame(nominal_spec, [pose])
-    t0 = time.perf_counter()
-    for _ in range(3):
-        encode(render_frame(nominal_spec, [pose]).image, "jpeg", 90)
-    per_frame = (time.perf_counter() - t0) / 3
-    assert per_frame < 0.2, per_frame  # target well under 0.1 s; slack for a loaded machine
 
 
 def test_no_poses_are_refused(clean_spec, vt) -> None:
