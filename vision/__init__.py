@@ -1,10 +1,32 @@
-"""beambench vision: camera model, registration/rectification, centre-line
-extraction, hub angle and deflection, and the scene renderer. numpy/scipy/OpenCV
-only; imports neither ``sim`` nor ``daq``."""
+"""beambench vision: from camera frames to hub angle, tip deflection and the beam's
+centre line, and the synthetic camera that draws such frames. numpy/scipy/OpenCV only;
+imports neither ``sim``, ``daq`` nor ``pipelines``.
 
-from vision.calibration import Calibration, load_calibration, plane_to_image_px
-from vision.codec import decode
-from vision.measure import FrameMeasurement, Measurer
+Modules, roughly in the order of the data flow:
+
+- ``errors``: the exception tree (root :class:`VisionError`).
+- ``config``: camera, camera pose and registration-object settings (frozen dataclasses).
+- ``camera``: pinhole model, the camera matrix, lens distortion, checkerboard calibration.
+- ``homography``: plane-to-plane collineations (the paper's 4-point one, DLT, from lines).
+- ``calibration``: :class:`Calibration`, one camera placement, with the plane <-> pixel
+  mapping (``to_px`` / ``to_plane``) and the CAL.json file.
+- ``registration``: finds the registration object in a frame and calibrates from it.
+- ``codec``: JPEG/PNG bytes <-> uint8 gray images.
+- ``sampling``, ``edges``: image sampling and sub-pixel edges along scan lines.
+- ``locate``: rough location of beam and hub in the plane.
+- ``hub``: the hub's axis and end faces; ``centreline``: the beam's fitted centre line.
+- ``frame_measurement``: :class:`FrameMeasurement`, what one frame shows.
+- ``measure``: :class:`Measurer`, the per-frame measurement and its default method;
+  ``paper_chain``: the paper's method, from a calibration.
+- ``synthetic``: the scene (``scene``), its rasteriser (``render``) and the camera's
+  placement (``pose``), for the synthetic bench and the tests.
+"""
+
+from vision.calibration import Calibration, load_calibration
+from vision.codec import decode, encode
+from vision.errors import VisionError
+from vision.frame_measurement import FrameMeasurement
+from vision.measure import Measurer
 from vision.registration import (
     calibration_from_registration,
     detect_registration_corners,
@@ -15,10 +37,11 @@ __all__ = [
     "Calibration",
     "FrameMeasurement",
     "Measurer",
+    "VisionError",
     "calibration_from_registration",
     "decode",
     "detect_registration_corners",
     "detect_registration_points",
+    "encode",
     "load_calibration",
-    "plane_to_image_px",
 ]

@@ -5,6 +5,11 @@ metres), optional intrinsics and lens distortion, and the beam's length and widt
 homography maps *undistorted* pixels to the plane; with four pairs it is the paper's
 exact collineation (Eqs. 42-46), with more the normalized DLT.
 
+The plane <-> pixel mapping (homography and lens distortion) is written once, here:
+:meth:`Calibration.to_px` / :meth:`Calibration.to_plane`, which are :func:`plane_to_px` /
+:func:`px_to_plane` with the calibration's homography and lens. The synthetic camera
+projects through :func:`plane_to_px` too, with its true pose's homography.
+
 CAL.json layout::
 
     {"registration": {"image_points_px": [[x, y], ...], "plane_points_m": [[X, Y], ...]},
@@ -25,7 +30,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from vision.camera import as_points, check_intrinsics, distort_points_px, undistort_points_px
+from vision.camera import Lens, as_points, check_intrinsics, undistort_points_px
+from vision.errors import CalibrationError, ParameterError
 from vision.homography import (
     MAX_CONDITION,
     HomographyFit,
@@ -49,6 +55,9 @@ class Calibration:
     camera_matrix : (3, 3) intrinsics or None (no distortion correction).
     distortion : OpenCV coefficients (k1, k2, p1, p2[, k3...]) or None.
     beam_length_m, beam_width_m : free length (clamp to tip) and width of the beam, m.
+
+    Map points with :meth:`to_px` (plane to raw pixels) and :meth:`to_plane` (raw pixels
+    to plane), lens distortion included when the calibration has it.
     """
 
     image_points_px: NDArray[np.float64]
@@ -58,22 +67,24 @@ class Calibration:
     beam_length_m: float = DEFAULT_BEAM_LENGTH_M
     beam_width_m: float = DEFAULT_BEAM_WIDTH_M
     fit: HomographyFit = field(init=False, repr=False)
+    _ideal_from_plane: NDArray[np.float64] = field(init=False, repr=False)
+    _lens: Lens = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         img = as_points(self.image_points_px, "image_points_px")
         pln = as_points(self.plane_points_m, "plane_points_m")
         if img.shape != pln.shape:
-            raise ValueError(
-                "image_points_px and plane_points_m must have the same shape, "
-                f"got {img.shape} and {pln.shape}"
+            raise ParameterError(
+                "image_points_px and plane_points_m",
+                f"must have the same shape, got {img.shape} and {pln.shape}",
             )
         k, d = check_intrinsics(self.camera_matrix, self.distortion)
         for name in ("beam_length_m", "beam_width_m"):
             v = getattr(self, name)
             if not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a positive number, got {v!r}")
+                raise ParameterError(name, f"must be a positive number, got {v!r}")
         if self.beam_width_m >= self.beam_length_m:
-            raise ValueError("beam_width_m must be smaller than beam_length_m")
+            raise ParameterError("beam_width_m", "must be smaller than beam_length_m")
         object.__setattr__(self, "image_points_px", img)
         object.__setattr__(self, "plane_points_m", pln)
         object.__setattr__(self, "camera_matrix", k)
@@ -82,28 +93,34 @@ class Calibration:
         try:
             fit = collineation_4pt(ideal, pln) if len(img) == 4 else dlt_homography(ideal, pln)
         except ValueError as exc:
-            raise ValueError(f"registration: {exc}") from None
+            raise CalibrationError(str(exc), section="registration") from None
         if not fit.condition < MAX_CONDITION:
-            raise ValueError(
-                f"registration: the homography is badly conditioned (condition {fit.condition:.3g})"
+            raise CalibrationError(
+                f"the homography is badly conditioned (condition {fit.condition:.3g})",
+                section="registration",
             )
         w = ideal @ fit.matrix[2, :2] + fit.matrix[2, 2]
         if not (np.all(w > 0) or np.all(w < 0)):
-            raise ValueError(
-                "registration: the points are not in a consistent order "
-                "(the plane's horizon crosses them)"
+            raise CalibrationError(
+                "the points are not in a consistent order (the plane's horizon crosses them)",
+                section="registration",
             )
         object.__setattr__(self, "fit", fit)
+        object.__setattr__(self, "_ideal_from_plane", np.linalg.inv(fit.matrix))
+        object.__setattr__(self, "_lens", Lens(k, d))
 
     @property
     def plane_from_ideal(self) -> NDArray[np.float64]:
         """(3, 3) homography from undistorted pixels to beam-plane metres."""
         return self.fit.matrix
 
-    def image_to_plane_m(self, points_px: ArrayLike) -> NDArray[np.float64]:
-        """Raw pixel points (N, 2) to beam-plane points (N, 2), m."""
-        ideal = undistort_points_px(points_px, self.camera_matrix, self.distortion)
-        return apply_homography(self.fit.matrix, ideal)
+    def to_px(self, points_m: ArrayLike) -> NDArray[np.float64]:
+        """Beam-plane points (N, 2), m, to raw (distorted) image pixels (N, 2), (x, y)."""
+        return plane_to_px(points_m, self._ideal_from_plane, self._lens)
+
+    def to_plane(self, points_px: ArrayLike) -> NDArray[np.float64]:
+        """Raw image pixels (N, 2), (x, y), to beam-plane points (N, 2), m."""
+        return px_to_plane(points_px, self.fit.matrix, self._lens)
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -127,43 +144,55 @@ class Calibration:
         return json.dumps(self.to_dict(), indent=2)
 
 
-def plane_to_image_px(points_m: ArrayLike, calibration: Calibration) -> NDArray[np.float64]:
-    """Beam-plane points (N, 2), m, to raw image pixels (N, 2) through the homography
-    and the lens distortion (for overlays)."""
-    pts = as_points(np.asarray(points_m, dtype=np.float64).reshape(-1, 2), "points_m")
-    ideal = apply_homography(np.linalg.inv(calibration.fit.matrix), pts)
-    return distort_points_px(ideal, calibration.camera_matrix, calibration.distortion)
+def plane_to_px(
+    points_m: ArrayLike, ideal_from_plane: NDArray[np.float64], lens: Lens
+) -> NDArray[np.float64]:
+    """Beam-plane points (N, 2), m, to raw image pixels (N, 2): the homography
+    ``ideal_from_plane`` (3, 3) to undistorted pixels, then the ``lens``."""
+    ideal = apply_homography(ideal_from_plane, points_m)
+    return ideal if lens.identity else lens.distort(ideal)
+
+
+def px_to_plane(
+    points_px: ArrayLike, plane_from_ideal: NDArray[np.float64], lens: Lens
+) -> NDArray[np.float64]:
+    """Raw image pixels (N, 2) to beam-plane points (N, 2), m: the ``lens`` undone, then
+    the homography ``plane_from_ideal`` (3, 3). The inverse of :func:`plane_to_px`."""
+    ideal = points_px if lens.identity else lens.undistort(np.asarray(points_px, np.float64))
+    return apply_homography(plane_from_ideal, ideal)
 
 
 def calibration_from_dict(data: Any) -> Calibration:
     """Build a :class:`Calibration` from the parsed CAL.json structure."""
     if not isinstance(data, dict):
-        raise ValueError("the top level must be an object")
+        raise CalibrationError("the top level must be an object")
     unknown = set(data) - {"registration", "camera", "beam"}
     if unknown:
-        raise ValueError(f"unknown key(s) {sorted(unknown)}")
+        raise CalibrationError(f"unknown key(s) {sorted(unknown)}")
     reg = data.get("registration")
     if not isinstance(reg, dict):
-        raise ValueError("'registration' object is missing")
+        raise CalibrationError("'registration' object is missing")
     for key in ("image_points_px", "plane_points_m"):
         if key not in reg:
-            raise ValueError(f"registration.{key} is missing")
+            raise CalibrationError(f"registration.{key} is missing")
     cam = data.get("camera", {}) or {}
     beam = data.get("beam", {}) or {}
     if not isinstance(cam, dict) or not isinstance(beam, dict):
-        raise ValueError("'camera' and 'beam' must be objects")
+        raise CalibrationError("'camera' and 'beam' must be objects")
     try:
         img = np.asarray(reg["image_points_px"], dtype=np.float64)
         pln = np.asarray(reg["plane_points_m"], dtype=np.float64)
         matrix = None if cam.get("matrix") is None else np.asarray(cam["matrix"], float)
         dist = None if cam.get("distortion") is None else np.asarray(cam["distortion"], float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"a point list or camera array is not numeric ({exc})") from None
+        raise CalibrationError(f"a point list or camera array is not numeric ({exc})") from None
     if len(img) < 4:
-        raise ValueError(f"registration.image_points_px needs 4 or more points, got {len(img)}")
+        raise CalibrationError(
+            f"registration.image_points_px needs 4 or more points, got {len(img)}"
+        )
     for key in beam:
         if key not in ("length_m", "width_m"):
-            raise ValueError(f"unknown key beam.{key}")
+            raise CalibrationError(f"unknown key beam.{key}")
     return Calibration(
         image_points_px=img,
         plane_points_m=pln,
@@ -175,15 +204,17 @@ def calibration_from_dict(data: Any) -> Calibration:
 
 
 def load_calibration(path: str | Path) -> Calibration:
-    """Read CAL.json; raises ``ValueError`` with the reason (not naming the file)."""
+    """Read CAL.json; raises :class:`~vision.errors.CalibrationError` (or, for a bad
+    value, :class:`~vision.errors.ParameterError`; both ``ValueError``) with the reason,
+    not naming the file."""
     try:
         text = Path(path).read_text("utf-8")
     except FileNotFoundError:
-        raise ValueError("no such file") from None
+        raise CalibrationError("no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot be read ({exc})") from None
+        raise CalibrationError(f"cannot be read ({exc})") from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"not valid JSON ({exc})") from None
+        raise CalibrationError(f"not valid JSON ({exc})") from None
     return calibration_from_dict(data)

@@ -13,6 +13,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from vision.errors import CalibrationError, ParameterError
+
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
 
 
@@ -20,7 +22,7 @@ def camera_matrix(focal_length_px: float, width_px: int, height_px: int) -> NDAr
     """The 3x3 intrinsic matrix of a camera with square pixels, principal point at the
     image centre ``((width_px - 1) / 2, (height_px - 1) / 2)``."""
     if not np.isfinite(focal_length_px) or focal_length_px <= 0:
-        raise ValueError(f"focal_length_px must be positive, got {focal_length_px!r}")
+        raise ParameterError("focal_length_px", f"must be positive, got {focal_length_px!r}")
     return np.array(
         [
             [focal_length_px, 0.0, (width_px - 1) / 2.0],
@@ -34,9 +36,9 @@ def as_points(points: ArrayLike, name: str) -> NDArray[np.float64]:
     """Validate an ``(N, 2)`` array of finite points, naming the parameter on error."""
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"{name} must have shape (N, 2), got {arr.shape}")
+        raise ParameterError(name, f"must have shape (N, 2), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
+        raise ParameterError(name, "must be finite")
     return arr
 
 
@@ -48,10 +50,12 @@ def check_intrinsics(
     if matrix is not None:
         k = np.asarray(matrix, dtype=np.float64)
         if k.shape != (3, 3) or not np.all(np.isfinite(k)):
-            raise ValueError(f"camera matrix must be a finite 3x3 array, got shape {k.shape}")
+            raise ParameterError(
+                "camera matrix", f"must be a finite 3x3 array, got shape {k.shape}"
+            )
         if k[0, 0] <= 0 or k[1, 1] <= 0 or abs(k[2, 2] - 1.0) > 1e-9 or np.any(k[2, :2] != 0):
-            raise ValueError(
-                "camera matrix must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], fx, fy > 0"
+            raise ParameterError(
+                "camera matrix", "must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], fx, fy > 0"
             )
     d = None
     if distortion is not None:
@@ -59,11 +63,12 @@ def check_intrinsics(
         if d.size == 0:
             return k, None
         if d.size not in (4, 5, 8, 12, 14) or not np.all(np.isfinite(d)):
-            raise ValueError(
-                f"distortion must have 4, 5, 8, 12 or 14 finite OpenCV coefficients, got {d.size}"
+            raise ParameterError(
+                "distortion",
+                f"must have 4, 5, 8, 12 or 14 finite OpenCV coefficients, got {d.size}",
             )
         if k is None and np.any(d != 0):
-            raise ValueError("distortion needs a camera matrix")
+            raise ParameterError("distortion", "needs a camera matrix")
     return k, d
 
 
@@ -129,9 +134,9 @@ def calibrate_checkerboard(
     matrix : (3, 3), distortion : (5,) OpenCV order, rms_px : reprojection RMS, px.
     """
     if square_m <= 0:
-        raise ValueError(f"square_m must be positive, got {square_m!r}")
+        raise ParameterError("square_m", f"must be positive, got {square_m!r}")
     if len(images) < 3:
-        raise ValueError(f"images must hold at least 3 views, got {len(images)}")
+        raise ParameterError("images", f"must hold at least 3 views, got {len(images)}")
     cols, rows = pattern_size
     grid = np.zeros((cols * rows, 3), np.float32)
     grid[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * square_m
@@ -139,7 +144,7 @@ def calibrate_checkerboard(
     shape: tuple[int, int] = (0, 0)
     for i, im in enumerate(images):
         if im.ndim != 2 or im.dtype != np.uint8:
-            raise ValueError(f"images[{i}] must be a uint8 [row, col] gray image")
+            raise ParameterError(f"images[{i}]", "must be a uint8 [row, col] gray image")
         shape = (im.shape[1], im.shape[0])
         found, corners = cv2.findChessboardCorners(im, (cols, rows))
         if not found:
@@ -154,7 +159,9 @@ def calibrate_checkerboard(
         obj.append(grid)
         img.append(corners)
     if len(obj) < 3:
-        raise ValueError(f"the checkerboard was found in only {len(obj)} of {len(images)} images")
+        raise CalibrationError(
+            f"the checkerboard was found in only {len(obj)} of {len(images)} images"
+        )
     rms, k, d, _, _ = cv2.calibrateCamera(obj, img, shape, None, None)
     return np.asarray(k, float), np.asarray(d, float).ravel(), float(rms)
 

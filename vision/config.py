@@ -1,7 +1,8 @@
 """Configuration of the camera and the registration object.
 
-Frozen dataclasses validated on construction; a bad value raises ``ValueError``
-whose message starts with the field name.
+Frozen dataclasses validated on construction; a bad value raises
+:class:`~vision.errors.ParameterError` (a ``ValueError``) whose message starts with the
+field name.
 
 The beam-plane frame: origin at the beam pivot (the rocker's ground pivot), X along
 the mechanism's ground link (crank pivot towards rocker pivot, Eqs. 1-2), Y to make a
@@ -13,12 +14,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from vision.errors import ParameterError
+
 ENCODINGS = ("jpeg", "png")
 
 
 def _positive(name: str, value: float) -> None:
     if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        raise ParameterError(name, f"must be a positive finite number, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -45,23 +48,27 @@ class CameraConfig:
         for name in ("width_px", "height_px"):
             v = getattr(self, name)
             if not 16 <= v <= 20000:
-                raise ValueError(f"{name} must be between 16 and 20000, got {v!r}")
+                raise ParameterError(name, f"must be between 16 and 20000, got {v!r}")
         for name in ("frame_rate_hz", "exposure_s", "focal_length_px"):
             _positive(name, getattr(self, name))
         if self.latency_s < 0.0:
-            raise ValueError(f"latency_s must be >= 0, got {self.latency_s!r}")
+            raise ParameterError("latency_s", f"must be >= 0, got {self.latency_s!r}")
         if self.exposure_s * self.frame_rate_hz > 1.0:
-            raise ValueError(
-                f"exposure_s ({self.exposure_s!r}) must be shorter than the frame period "
-                f"(1 / frame_rate_hz = {1.0 / self.frame_rate_hz:.6g} s)"
+            raise ParameterError(
+                "exposure_s",
+                f"({self.exposure_s!r}) must be shorter than the frame period "
+                f"(1 / frame_rate_hz = {1.0 / self.frame_rate_hz:.6g} s)",
             )
         if self.encoding not in ENCODINGS:
-            raise ValueError(f"encoding must be one of {ENCODINGS}, got {self.encoding!r}")
+            raise ParameterError("encoding", f"must be one of {ENCODINGS}, got {self.encoding!r}")
         if not 1 <= self.jpeg_quality <= 100:
-            raise ValueError(f"jpeg_quality must be between 1 and 100, got {self.jpeg_quality!r}")
+            raise ParameterError(
+                "jpeg_quality", f"must be between 1 and 100, got {self.jpeg_quality!r}"
+            )
         if len(self.distortion) not in (4, 5, 8):
-            raise ValueError(
-                f"distortion must have 4, 5 or 8 OpenCV coefficients, got {len(self.distortion)}"
+            raise ParameterError(
+                "distortion",
+                f"must have 4, 5 or 8 OpenCV coefficients, got {len(self.distortion)}",
             )
 
 
@@ -84,9 +91,9 @@ class CameraPoseConfig:
     def __post_init__(self) -> None:
         _positive("distance_m", self.distance_m)
         if len(self.target_m) != 2:
-            raise ValueError(f"target_m must be (x, y), got {self.target_m!r}")
+            raise ParameterError("target_m", f"must be (x, y), got {self.target_m!r}")
         if not 0.0 <= self.tilt_rad < math.radians(80.0):
-            raise ValueError(f"tilt_rad must be in [0, 80 deg), got {self.tilt_rad!r}")
+            raise ParameterError("tilt_rad", f"must be in [0, 80 deg), got {self.tilt_rad!r}")
 
 
 @dataclass(frozen=True)
@@ -107,9 +114,10 @@ class RegistrationConfig:
         _positive("square_side_m", self.square_side_m)
         _positive("plate_side_m", self.plate_side_m)
         if self.plate_side_m <= 2.0 * self.square_side_m:
-            raise ValueError(
-                f"plate_side_m ({self.plate_side_m!r}) must exceed twice square_side_m "
-                f"({self.square_side_m!r}) so the grooves show on the plate"
+            raise ParameterError(
+                "plate_side_m",
+                f"({self.plate_side_m!r}) must exceed twice square_side_m "
+                f"({self.square_side_m!r}) so the grooves show on the plate",
             )
         if len(self.center_m) != 2:
-            raise ValueError(f"center_m must be (x, y), got {self.center_m!r}")
+            raise ParameterError("center_m", f"must be (x, y), got {self.center_m!r}")

@@ -19,15 +19,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.camera import as_points
+from vision.errors import DegeneratePointsError, ParameterError
 
 #: Below this relative triangle area three points count as collinear.
 COLLINEAR_TOLERANCE = 1e-3
 #: Above this condition number a homography is refused as badly conditioned.
 MAX_CONDITION = 1e7
-
-
-class DegeneratePointsError(ValueError):
-    """The point sets cannot determine a collineation (the message says why)."""
 
 
 @dataclass(frozen=True)
@@ -50,31 +47,33 @@ def check_general_position(points: NDArray[np.float64], name: str) -> None:
     collinear points; for more points, refuse when all are nearly collinear."""
     n = len(points)
     if n < 4:
-        raise DegeneratePointsError(f"{name} needs at least 4 points, got {n}")
+        raise DegeneratePointsError(name, f"needs at least 4 points, got {n}")
     span = float(np.max(np.linalg.norm(points[:, None, :] - points[None, :, :], axis=-1)))
     if span == 0.0:
-        raise DegeneratePointsError(f"{name}: all points coincide")
+        raise DegeneratePointsError(name, "all points coincide")
     for i, j in combinations(range(n), 2):
         if np.linalg.norm(points[i] - points[j]) < 1e-9 * span:
-            raise DegeneratePointsError(f"{name}: points {i} and {j} coincide")
+            raise DegeneratePointsError(name, f"points {i} and {j} coincide")
     if n == 4:
         for i, j, k in combinations(range(4), 3):
             a, b, c = points[i], points[j], points[k]
             area = abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])) / 2
             if area < COLLINEAR_TOLERANCE * span**2:
-                raise DegeneratePointsError(f"{name}: points {i}, {j}, {k} are nearly collinear")
+                raise DegeneratePointsError(name, f"points {i}, {j}, {k} are nearly collinear")
     else:
         centred = points - points.mean(axis=0)
         sv = np.linalg.svd(centred, compute_uv=False)
         if sv[1] < COLLINEAR_TOLERANCE * sv[0]:
-            raise DegeneratePointsError(f"{name}: all points are nearly collinear")
+            raise DegeneratePointsError(name, "all points are nearly collinear")
 
 
 def _validated(src: ArrayLike, dst: ArrayLike) -> tuple[NDArray[np.float64], ...]:
     s = as_points(src, "src")
     d = as_points(dst, "dst")
     if s.shape != d.shape:
-        raise ValueError(f"src and dst must have the same shape, got {s.shape} and {d.shape}")
+        raise ParameterError(
+            "src and dst", f"must have the same shape, got {s.shape} and {d.shape}"
+        )
     check_general_position(s, "src")
     check_general_position(d, "dst")
     return s, d
@@ -93,7 +92,7 @@ def collineation_4pt(src: ArrayLike, dst: ArrayLike) -> HomographyFit:
     """
     s, d = _validated(src, dst)
     if len(s) != 4:
-        raise ValueError(f"collineation_4pt needs exactly 4 point pairs, got {len(s)}")
+        raise ParameterError("src and dst", f"must be exactly 4 point pairs, got {len(s)}")
     # Paper order: homogeneous scale first, w = (w0 : w1 : w2) = (1 : x : y).
     w = np.column_stack([np.ones(4), s])
     big_w = np.column_stack([np.ones(4), d])
@@ -112,7 +111,7 @@ def collineation_4pt(src: ArrayLike, dst: ArrayLike) -> HomographyFit:
                     a[row, t_index[(r, c)]] = w[i, c]
             a[row, 8 + i] = -big_w[i, r]
     if not np.isfinite(np.linalg.cond(a)) or np.linalg.matrix_rank(a) < 12:
-        raise DegeneratePointsError("the collineation equations (Eq. 46) are singular")
+        raise DegeneratePointsError(None, "the collineation equations (Eq. 46) are singular")
     sol = np.linalg.solve(a, b)
     t = np.empty((3, 3))
     t[0, 0] = 1.0
@@ -237,7 +236,7 @@ def homography_from_lines(
     from scipy.optimize import least_squares
 
     if len(points_px) != len(plane_lines):
-        raise ValueError("points_px and plane_lines must have one entry per line")
+        raise ParameterError("points_px and plane_lines", "must have one entry per line")
     allp = np.vstack(points_px)
     tn = _normalizer(allp)
     lines = np.asarray(plane_lines, dtype=np.float64)

@@ -13,13 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import FrameFailure
 from vision.sampling import BilinearPlan, bilinear, median
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
-
-
-class FrameFailure(Exception):
-    """A frame that gives no measurement; the message is the reason."""
 
 
 @dataclass

@@ -1,14 +1,19 @@
 """Per-frame measurement: hub angle, tip deflection and the beam's centre line.
 
+:class:`Measurer` holds one camera placement's calibration and settings and measures a
+frame into a :class:`~vision.frame_measurement.FrameMeasurement` by one of two methods.
+
 Methods
 -------
 ``"default"``
     Locate the beam and hub around the pivot (:mod:`vision.locate`), take sub-pixel
     edges along raw pixel rows/columns (:mod:`vision.edges`), map the edge points through
-    undistortion and the homography into the plane, fit the hub's two edges as parallel
-    lines (hub axis and angle), find the clamp (where the hub ends) and the tip (where
-    the strip ends) by 1-D edge moments along the axis, and fit each beam edge with a
-    polynomial in the hub frame; the centre line is their mean.
+    undistortion and the homography into the plane (:meth:`Calibration.to_plane
+    <vision.calibration.Calibration.to_plane>`), fit the hub's two edges as parallel
+    lines (hub axis and angle) and find the clamp (where the hub ends) by 1-D edge moments
+    along the axis (:mod:`vision.hub`), fit each beam edge with a polynomial in the hub
+    frame, the centre line being their mean (:mod:`vision.centreline`), and find the tip
+    (where the strip ends) as the clamp was found. The beam's steps are here.
 ``"paper"``
     The paper's chain (seed 000 §4): whole-frame rectification with the homography,
     3x3 mean filter, Prewitt edges, 5x1 boxcar, first moments (:mod:`vision.paper_chain`).
@@ -20,24 +25,24 @@ import itertools
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from vision.calibration import Calibration
-from vision.camera import Lens
 from vision.centreline import (
     CentreLine,
     arc_length,
-    correlation_inflation,
     fit_centreline,
     stations_to_a,
 )
 from vision.edges import strip_edges_many
-from vision.homography import apply_homography
-from vision.locate import FrameFailure, Rough, locate, search_circles
-from vision.sampling import bilinear, median
+from vision.errors import FrameFailure, ParameterError
+from vision.frame_measurement import FrameMeasurement
+from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
+from vision.locate import Rough, locate, search_circles
+from vision.paper_chain import measure_paper
+from vision.sampling import median
 
 log = logging.getLogger(__name__)
 
@@ -45,67 +50,6 @@ METHODS = ("default", "paper")
 #: Hub edge points are taken this many pixels clear of the hub's end faces (the scan
 #: window and the blur reach that far).
 _END_MARGIN_PX = 10.0
-_NAN2 = np.full(2, np.nan)
-
-
-@dataclass(frozen=True, eq=False)
-class FrameMeasurement:
-    """What one frame shows. Numbers are NaN when ``ok`` is False.
-
-    Attributes
-    ----------
-    ok, reason : whether the frame gave a measurement, and why not.
-    hub_angle_rad : hub axis direction (pivot toward beam), CCW from +X, in [0, 2 pi).
-    tip_lateral_m, tip_longitudinal_m : tip deflection relative to the rigid beam (the hub
-        axis extended from the clamp).
-    stations_m, lateral_at_stations_m : (S,) lateral deflection at those distances from
-        the clamp along the beam.
-    centreline_plane_m, centreline_px : (K, 2) centre line, plane (m) and raw image (px).
-    hub_line_px : (2, 2) two raw-image points on the hub axis (back end, clamp).
-    clamp_plane_m, tip_plane_m : (2,) where the free beam begins / the tip's end centre.
-    hub_width_m, beam_width_m : widths measured in the frame.
-    edge_rms_m : RMS residual of the beam edge fits.
-    hub_angle_std_rad, tip_lateral_std_m : standard uncertainties predicted from the edge
-        fits' residuals (noise only; calibration errors are not included).
-    blur_px : median ramp width of the beam's edges along the scan lines, px (motion blur
-        widens it; frames beyond ``max_blur_px`` are flagged).
-    """
-
-    ok: bool
-    reason: str = ""
-    hub_angle_rad: float = math.nan
-    tip_lateral_m: float = math.nan
-    tip_longitudinal_m: float = math.nan
-    stations_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    lateral_at_stations_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    centreline_plane_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
-    centreline_px: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
-    hub_line_px: NDArray[np.float64] = field(default_factory=lambda: np.full((2, 2), np.nan))
-    clamp_plane_m: NDArray[np.float64] = field(default_factory=lambda: _NAN2.copy())
-    tip_plane_m: NDArray[np.float64] = field(default_factory=lambda: _NAN2.copy())
-    hub_width_m: float = math.nan
-    beam_width_m: float = math.nan
-    edge_rms_m: float = math.nan
-    blur_px: float = math.nan
-    hub_angle_std_rad: float = math.nan
-    tip_lateral_std_m: float = math.nan
-    method: str = "default"
-
-    def to_dict(self) -> dict[str, object]:
-        """The JSON-able summary (what ``beambench measure --json`` prints)."""
-
-        def num(x: float) -> float | None:
-            return None if not math.isfinite(x) else float(x)
-
-        return {
-            "ok": self.ok,
-            "reason": self.reason,
-            "hub_angle_rad": num(self.hub_angle_rad),
-            "tip_lateral_m": num(self.tip_lateral_m),
-            "tip_longitudinal_m": num(self.tip_longitudinal_m),
-            "stations_m": [float(s) for s in self.stations_m],
-            "lateral_at_stations_m": [num(float(v)) for v in self.lateral_at_stations_m],
-        }
 
 
 class Measurer:
@@ -134,10 +78,10 @@ class Measurer:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
         if method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+            raise ParameterError("method", f"must be one of {METHODS}, got {method!r}")
         st = np.asarray(stations_m, dtype=np.float64).ravel()
         if not np.all(np.isfinite(st)) or np.any(st < 0) or np.any(st > calibration.beam_length_m):
-            raise ValueError("stations_m must lie on the beam (0 .. beam_length_m)")
+            raise ParameterError("stations_m", "must lie on the beam (0 .. beam_length_m)")
         self.calibration = calibration
         self.stations_m = st
         self.method = method
@@ -146,34 +90,20 @@ class Measurer:
         self.edge_estimator = edge_estimator
         self.max_root_slope_rad = float(max_root_slope_rad)
         self.max_tip_std_m = float(max_tip_std_m)
-        self._h = calibration.fit.matrix
-        self._h_inv = np.linalg.inv(self._h)
-        self._lens = Lens(calibration.camera_matrix, calibration.distortion)
         # Plane size of a pixel about the pivot (search step sizes are set from it).
-        pivot_px = self.to_px(np.zeros((1, 2)))[0]
-        nb = self.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
+        pivot_px = calibration.to_px(np.zeros((1, 2)))[0]
+        nb = calibration.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
         self.px_m = float(np.mean(np.linalg.norm(nb - 0.0, axis=1)))
         if not math.isfinite(self.px_m) or self.px_m <= 0:
-            raise ValueError("calibration: the pivot does not map into the image plane")
+            raise ParameterError("calibration", "does not map the pivot into the image plane")
         # The search circles for the beam are fixed in the plane: mapped once.
         self._circles = (
             search_circles(
-                self.to_px, calibration.beam_length_m, calibration.beam_width_m, self.px_m
+                calibration.to_px, calibration.beam_length_m, calibration.beam_width_m, self.px_m
             )
             if method == "default"
             else None
         )
-
-    # -- mappings ---------------------------------------------------------------------
-    def to_px(self, points_m: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Plane points (N, 2) m -> raw pixels (N, 2)."""
-        ideal = apply_homography(self._h_inv, points_m)
-        return ideal if self._lens.identity else self._lens.distort(ideal)
-
-    def to_plane(self, points_px: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Raw pixels (N, 2) -> plane points (N, 2) m."""
-        ideal = points_px if self._lens.identity else self._lens.undistort(points_px)
-        return apply_homography(self._h, ideal)
 
     # -- entry point --------------------------------------------------------------------
     def measure(self, image_gray: NDArray[np.uint8]) -> FrameMeasurement:
@@ -186,12 +116,12 @@ class Measurer:
             return self._fail("blank frame (no contrast)")
         try:
             if self.method == "paper":
-                from vision.paper_chain import measure_paper
-
-                return measure_paper(self, image_gray)
+                return measure_paper(
+                    self.calibration, image_gray, stations_m=self.stations_m, resolution_m=self.px_m
+                )
             return self._measure_default(image_gray)
         except FrameFailure as exc:
-            return self._fail(str(exc))
+            return self._fail(exc.reason)
         except (ValueError, np.linalg.LinAlgError, IndexError, FloatingPointError) as exc:
             log.warning("frame measurement failed unexpectedly: %s", exc)
             return self._fail(f"measurement failed ({exc})")
@@ -210,25 +140,25 @@ class Measurer:
     def _measure_default(self, image: NDArray[np.uint8]) -> FrameMeasurement:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
-        rough = locate(image, self.to_px, length, w_beam, self.px_m, self._circles)
+        rough = locate(image, cal.to_px, length, w_beam, self.px_m, self._circles)
         # The hub's axis, first through the rough centres of its cross-profiles: enough
         # to place the searches for its end faces, whose lines lie symmetrically about it.
-        e, n, axis_b = _rough_axis(rough)
+        e, n, axis_b = rough_axis(rough)
         hub_w = rough.hub_width
         # Clamp: the hub's end face, on its shoulders either side of the beam.
         origin0 = rough.clamp - ((rough.clamp @ n) - axis_b) * n
-        a_clamp = self._end_face(image, origin0, e, n, hub_w, w_beam)
+        to_px, px_m = cal.to_px, self.px_m
+        a_clamp = clamp_face(image, origin0, e, n, hub_w, w_beam, to_px=to_px, px_m=px_m)
         clamp = origin0 + a_clamp * e
-        back_a = self._back_face(image, clamp, e, n, hub_w, float((rough.hub_back - clamp) @ e))
+        guess_back = float((rough.hub_back - clamp) @ e)
+        back_a = back_face(image, clamp, e, n, hub_w, guess_back, to_px=to_px, px_m=px_m)
         back = clamp + back_a * e
         # The hub's and the beam's edges, scanned in one pass (a scan's fixed cost is
         # about that of its lines). The hub's axis is then fitted to its two long edges
         # over its whole length (the direction's noise falls as length^-1.5), and the
         # beam's edges are expressed in that frame.
         (ha, hb), (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
-        e, n, axis_b, hub_w, sd_hub = self._hub_axis(
-            ha, hb, back, clamp, e, _END_MARGIN_PX * self.px_m
-        )
+        e, n, axis_b, hub_w, sd_hub = hub_axis(ha, hb, back, clamp, e, _END_MARGIN_PX * px_m)
         clamp = clamp - ((clamp @ n) - axis_b) * n
         la, lb = self._beam_frame(pa, pb, clamp, e, n, hub_w, length)
         amax = float(max(la[:, 0].max(), lb[:, 0].max()))
@@ -271,7 +201,7 @@ class Measurer:
         b_line[-1] = b_tip
         line_m = clamp[None, :] + a_line[:, None] * e[None, :] + b_line[:, None] * n[None, :]
         back = clamp + back_a * e
-        hub_px = self.to_px(np.vstack([back, clamp]))
+        hub_px = cal.to_px(np.vstack([back, clamp]))
         return FrameMeasurement(
             ok=True,
             hub_angle_rad=float(math.atan2(e[1], e[0]) % (2 * math.pi)),
@@ -280,7 +210,7 @@ class Measurer:
             stations_m=self.stations_m.copy(),
             lateral_at_stations_m=np.asarray(lat_st, dtype=np.float64),
             centreline_plane_m=line_m,
-            centreline_px=self.to_px(line_m),
+            centreline_px=cal.to_px(line_m),
             hub_line_px=hub_px,
             clamp_plane_m=clamp,
             tip_plane_m=line_m[-1].copy(),
@@ -308,7 +238,7 @@ class Measurer:
             t /= np.hypot(t[:, 0], t[:, 1])[:, None]
             lines.append(line_m)
             offsets.append(line_m + half_m * np.column_stack([-t[:, 1], t[:, 0]]))
-        both = self.to_px(np.vstack(lines + offsets))
+        both = self.calibration.to_px(np.vstack(lines + offsets))
         sizes = np.cumsum([0] + [len(x) for x in lines])
         px, off = both[: sizes[-1]], both[sizes[-1] :]
         across = np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
@@ -323,121 +253,12 @@ class Measurer:
                 raise FrameFailure("too few edge points (strip not visible)")
             keep = edges.contrast > 0.35 * median(edges.contrast)
             kept.append((edges.side_a[keep], edges.side_b[keep], edges.spread[keep]))
-        plane = self.to_plane(np.vstack([p for a, b, _ in kept for p in (a, b)]))
+        plane = self.calibration.to_plane(np.vstack([p for a, b, _ in kept for p in (a, b)]))
         out, i = [], 0
         for a, _b, spread in kept:
             out.append((plane[i : i + len(a)], plane[i + len(a) : i + 2 * len(a)], spread))
             i += 2 * len(a)
         return out
-
-    def _hub_axis(
-        self,
-        pa: NDArray[np.float64],
-        pb: NDArray[np.float64],
-        back: NDArray[np.float64],
-        front: NDArray[np.float64],
-        e: NDArray[np.float64],
-        margin: float,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float, float]:
-        """Hub axis from points (plane, m) on its two long edges (``pa``, ``pb``, from
-        :meth:`_scan`), those ``margin`` clear of ``back`` and ``front`` (the end faces),
-        fitted as parallel lines. ``e``: the rough axis direction. Returns the unit
-        direction (back to front) and normal, the axis offset along the normal, the width
-        and the standard uncertainty of the direction (rad)."""
-        length = float((front - back) @ e)
-        sa, sb = (pa - back) @ e, (pb - back) @ e
-        pa = pa[(sa > margin) & (sa < length - margin)]
-        pb = pb[(sb > margin) & (sb < length - margin)]
-        if len(pa) < 5 or len(pb) < 5:
-            raise FrameFailure("hub edges not visible")
-        # Two robust passes: the common direction of both edges (the major axis of their
-        # scatter about their own centroids, in closed form), then drop points beyond
-        # four robust sigmas across it. x and y apart: (N, 2) arrays are slow to operate on.
-        xa, ya, xb, yb = pa[:, 0], pa[:, 1], pb[:, 0], pb[:, 1]
-        for _ in range(2):
-            na, nb = len(xa), len(xb)  # sum / n: ndarray.mean's wrapper costs more here
-            dxa, dya = xa - xa.sum() / na, ya - ya.sum() / na
-            dxb, dyb = xb - xb.sum() / nb, yb - yb.sum() / nb
-            sxx = float(dxa @ dxa + dxb @ dxb)
-            syy = float(dya @ dya + dyb @ dyb)
-            sxy = float(dxa @ dya + dxb @ dyb)
-            th = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
-            e2 = np.array([math.cos(th), math.sin(th)])
-            e2 = e2 if e2 @ e > 0 else -e2
-            ra, rb = dya * e2[0] - dxa * e2[1], dyb * e2[0] - dxb * e2[1]
-            sig = 1.4826 * median(np.abs(np.concatenate([ra, rb]))) + 1e-9
-            ka, kb = np.abs(ra) < 4 * sig, np.abs(rb) < 4 * sig
-            if ka.sum() < 3 or kb.sum() < 3:
-                raise FrameFailure("hub edges not straight")
-            xa, ya, xb, yb = xa[ka], ya[ka], xb[kb], yb[kb]
-            e = e2
-        n = np.array([-e[1], e[0]])
-        pa, pb = np.column_stack([xa, ya]), np.column_stack([xb, yb])
-        ca, cb = np.array([xa.mean(), ya.mean()]), np.array([xb.mean(), yb.mean()])
-        ba, bb = float(ca @ n), float(cb @ n)
-        # Direction uncertainty of the common-direction fit: residual / spread along it.
-        res = np.concatenate([(pa - ca) @ n, (pb - cb) @ n])
-        spread = float(np.sum(((pa - ca) @ e) ** 2) + np.sum(((pb - cb) @ e) ** 2))
-        dof = max(len(res) - 3, 1)
-        infl = max(correlation_inflation(_along(pa, e, n)), correlation_inflation(_along(pb, e, n)))
-        sd = math.sqrt(float(np.sum(res**2)) / dof / max(spread, 1e-18) * infl)
-        return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
-
-    def _back_face(
-        self,
-        image: NDArray[np.uint8],
-        clamp: NDArray[np.float64],
-        e: NDArray[np.float64],
-        n: NDArray[np.float64],
-        hub_w: float,
-        guess_a: float,
-    ) -> float:
-        """Axis coordinate (from the clamp, negative) of the hub's back end face."""
-        lat = np.linspace(-0.6, 0.6, 5) * hub_w / 2
-        reach = 0.5 * min(abs(guess_a), 2.0 * hub_w)
-        return -self._along_edge(image, clamp, -e, n, lat, -guess_a, reach)
-
-    def _end_face(
-        self,
-        image: NDArray[np.uint8],
-        origin: NDArray[np.float64],
-        e: NDArray[np.float64],
-        n: NDArray[np.float64],
-        hub_w: float,
-        w_beam: float,
-    ) -> float:
-        """Position along the axis (from ``origin``) where the hub's shoulders end."""
-        inner, outer = w_beam / 2, hub_w / 2
-        if outer - inner < 3 * self.px_m:
-            raise FrameFailure("hub not wider than the beam by enough to find the clamp")
-        lat = np.linspace(inner + 0.3 * (outer - inner), outer - 0.3 * (outer - inner), 3)
-        return self._along_edge(image, origin, e, n, np.concatenate([lat, -lat]), 0.0, hub_w)
-
-    def _along_edge(
-        self,
-        image: NDArray[np.uint8],
-        origin: NDArray[np.float64],
-        e: NDArray[np.float64],
-        n: NDArray[np.float64],
-        lateral: NDArray[np.float64],
-        guess: float,
-        reach: float,
-    ) -> float:
-        """Bright-to-dark edge along ``e`` near ``guess`` on lines offset by ``lateral``."""
-        step = 0.25 * self.px_m
-        t = np.arange(guess - reach, guess + reach, step)
-        pts = np.empty((len(lateral), len(t), 2))
-        for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-            pts[:, :, c] = (origin[c] + t[None, :] * e[c]) + lateral[:, None] * n[c]
-        v = bilinear(image, self.to_px(pts.reshape(-1, 2))).reshape(len(lateral), len(t))
-        if not np.all(np.isfinite(v)):
-            raise FrameFailure("clamp or tip outside the image")
-        prof = v.mean(axis=0)
-        diff = -np.diff(prof)
-        centre, total = _step_moment(diff, int(np.argmax(diff)), round(3.0 / 0.25))
-        if not math.isfinite(centre) or total < 8.0:
-            raise FrameFailure("no clear end edge (clamp or tip)")
-        return float(t[0] + centre * step)
 
     def _scan(
         self,
@@ -527,38 +348,17 @@ class Measurer:
         norm = np.array([-tang[1], tang[0]])
         origin = clamp + a_ref * e + b_ref * n
         lat = np.array([-0.2, 0.0, 0.2]) * w_beam
-        dist = self._along_edge(image, origin, tang, norm, lat, 0.6 * w_beam, 1.2 * w_beam)
+        dist = end_edge(
+            image,
+            origin,
+            tang,
+            norm,
+            lat,
+            0.6 * w_beam,
+            1.2 * w_beam,
+            to_px=self.calibration.to_px,
+            px_m=self.px_m,
+        )
         a_tip = a_ref + dist * t[0]
         b_tip = b_ref + dist * t[1]
         return float(a_tip), float(b_tip)
-
-
-def _step_moment(diff: NDArray[np.float64], peak: int, half: int) -> tuple[float, float]:
-    """First moment (position, step k at k + 0.5) and sum of the positive steps within
-    ``half`` of ``peak`` in one profile's steps: :func:`vision.sampling.edge_moment` for
-    a single line, without its batch machinery."""
-    lo, hi = max(peak - half, 0), min(peak + half, len(diff) - 1)
-    d = diff[lo : hi + 1]
-    d = np.where(d > 0, d, 0.0)
-    total = float(d.sum())
-    if total <= 0.0:
-        return math.nan, total
-    return float((d * (np.arange(lo, hi + 1) + 0.5)).sum()) / total, total
-
-
-def _rough_axis(rough: Rough) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """Unit direction (back to clamp), normal and offset along the normal of the line
-    through the hub's rough profile centres and the rough clamp (least squares)."""
-    hub = rough.hub if len(rough.hub) else rough.hub_back[None, :]
-    pts = np.vstack([hub, rough.clamp[None, :]])
-    c = pts.mean(axis=0)
-    _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
-    e = vt[0] if vt[0] @ (rough.clamp - rough.hub_back) > 0 else -vt[0]
-    n = np.array([-e[1], e[0]])
-    return e, n, float(c @ n)
-
-
-def _along(p: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64]) -> NDArray:
-    """Residuals across a straight edge (N, 2) about its mean, ordered along it."""
-    c = p - p.mean(axis=0)
-    return (c @ n)[np.argsort(c @ e)]

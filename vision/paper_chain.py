@@ -7,29 +7,33 @@ boxcar along the strip, and each pixel column (or row) across the beam reduced t
 construction point: the first moment (centre of area) of its edge pixels. The hub angle is
 the best-fit line through the hub's construction points, relative to the horizontal pixel
 direction of the rectified image. Locating the strips reuses :func:`vision.locate.locate`.
+
+:func:`measure_paper` needs only the :class:`~vision.calibration.Calibration` (its
+homography, beam length and width, and its mapping for the image-space overlays), the
+stations and the rectified grid's resolution; :class:`vision.measure.Measurer` with
+``method="paper"`` calls it.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.locate import FrameFailure, locate
-
-if TYPE_CHECKING:
-    from vision.measure import FrameMeasurement, Measurer
+from vision.calibration import Calibration
+from vision.errors import FrameFailure
+from vision.frame_measurement import FrameMeasurement
+from vision.locate import locate
 
 _PREWITT = np.array([[-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]], np.float32)
 
 
-def _grid(m: Measurer) -> tuple[NDArray[np.float64], float, float, float, int]:
+def _grid(beam_length_m: float, res: float) -> tuple[NDArray[np.float64], float, float, float, int]:
     """Rectified grid: plane point (X, Y) -> (col, row) = ((X - x0)/res, (y0 - Y)/res)."""
-    reach = 1.08 * (m.calibration.beam_length_m + 0.05)
-    res = m.px_m
+    reach = 1.08 * (beam_length_m + 0.05)
     n = math.ceil(2 * reach / res)
     x0, y0 = -reach, reach
     g = np.array([[1 / res, 0, -x0 / res], [0, -1 / res, y0 / res], [0, 0, 1.0]])
@@ -61,11 +65,27 @@ def _centres(mag: NDArray[Any], line_px: NDArray[np.float64], half: float) -> ND
     return out if cols else out[:, ::-1]
 
 
-def measure_paper(m: Measurer, image: NDArray[np.uint8]) -> FrameMeasurement:
-    from vision.measure import FrameMeasurement
+def measure_paper(
+    calibration: Calibration,
+    image: NDArray[np.uint8],
+    *,
+    stations_m: NDArray[np.float64],
+    resolution_m: float,
+) -> FrameMeasurement:
+    """Measure one frame by the paper's chain.
 
-    cal = m.calibration
-    g, x0, y0, res, n = _grid(m)
+    Parameters
+    ----------
+    calibration : the camera placement (homography, beam length and width).
+    image : uint8 gray [row, col] frame.
+    stations_m : (S,) distances from the clamp (m) at which lateral deflection is reported.
+    resolution_m : side of a pixel of the rectified grid, m (the Measurer uses the plane
+        size of an image pixel at the pivot).
+
+    Raises :class:`~vision.errors.FrameFailure` when the frame gives no measurement.
+    """
+    cal = calibration
+    g, x0, y0, res, n = _grid(cal.beam_length_m, resolution_m)
     # Whole-frame rectification (the paper ignores lens distortion).
     warp = g @ cal.fit.matrix
     rect = cv2.warpPerspective(image, warp, (n, n), flags=cv2.INTER_LINEAR)
@@ -116,18 +136,18 @@ def measure_paper(m: Measurer, image: NDArray[np.uint8]) -> FrameMeasurement:
     prof = cv2.remap(mag_beam, q[:, 0:1], q[:, 1:2], cv2.INTER_LINEAR).ravel()
     a_tip = float(np.sum(prof * prof_t) / max(float(np.sum(prof)), 1e-9))
     b_tip = float(np.polyval(coef, a_tip))
-    lat = np.interp(m.stations_m, a, b)
+    lat = np.interp(stations_m, a, b)
     line = clamp + a[:, None] * e + b[:, None] * nrm
     return FrameMeasurement(
         ok=True,
         hub_angle_rad=float(math.atan2(e[1], e[0]) % (2 * math.pi)),
         tip_lateral_m=b_tip,
         tip_longitudinal_m=a_tip - cal.beam_length_m,
-        stations_m=m.stations_m.copy(),
+        stations_m=stations_m.copy(),
         lateral_at_stations_m=lat,
         centreline_plane_m=line,
-        centreline_px=m.to_px(line),
-        hub_line_px=m.to_px(np.vstack([rough.hub_back, clamp])),
+        centreline_px=cal.to_px(line),
+        hub_line_px=cal.to_px(np.vstack([rough.hub_back, clamp])),
         clamp_plane_m=clamp,
         tip_plane_m=clamp + a_tip * e + b_tip * nrm,
         hub_width_m=rough.hub_width,

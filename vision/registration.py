@@ -26,6 +26,7 @@ from vision.calibration import Calibration
 from vision.camera import check_intrinsics, distort_points_px, undistort_points_px
 from vision.config import RegistrationConfig
 from vision.edges import erf_edge
+from vision.errors import ParameterError, RegistrationError
 from vision.homography import (
     LineHomographyFit,
     apply_homography,
@@ -129,19 +130,20 @@ def _detect_inner(
     if not isinstance(image_gray, np.ndarray) or image_gray.dtype != np.uint8:
         raise TypeError("image_gray must be a uint8 numpy array")
     if image_gray.ndim != 2:
-        raise ValueError(f"image_gray must be [row, col], got shape {image_gray.shape}")
+        raise ParameterError("image_gray", f"must be [row, col], got shape {image_gray.shape}")
     k, d = check_intrinsics(camera_matrix, distortion)
     if float(image_gray.std()) < 2.0:
-        raise ValueError("registration object not found: blank image")
+        raise RegistrationError("blank image", found=False)
     ratio = (
         (registration.plate_side_m - registration.square_side_m) / 2 / registration.square_side_m
     )
     quads = _quads(image_gray)
     group = _group(quads, ratio)
     if group is None:
-        raise ValueError(
-            f"registration object not found: no four light quadrants around a dark cross "
-            f"({len(quads)} light quadrilaterals in the image)"
+        raise RegistrationError(
+            f"no four light quadrants around a dark cross "
+            f"({len(quads)} light quadrilaterals in the image)",
+            found=False,
         )
     centre = np.mean([q.mean(axis=0) for q in group], axis=0)
     sides = []  # (ideal-pixel points, direction) of each quadrant side along a groove
@@ -150,7 +152,7 @@ def _detect_inner(
         for j in (i - 1, (i + 1) % 4):
             raw = _side_points(image_gray, q[i], q[j], q.mean(axis=0))
             if len(raw) < 5:
-                raise ValueError("registration object not found: groove edges not visible")
+                raise RegistrationError("groove edges not visible", found=False)
             sides.append(undistort_points_px(raw, k, d))
     lines = _lines_from_sides(sides)
     corners = []
@@ -165,7 +167,7 @@ def _detect_inner(
         or np.any(raw_corners[:, 0] > w - 1)
         or np.any(raw_corners[:, 1] > h - 1)
     ):
-        raise ValueError("registration object: a corner lies off the image")
+        raise RegistrationError("a corner lies off the image", found=True)
     return _order(raw_corners, registration.angle_rad, x_axis_image_rad)
 
 
@@ -196,16 +198,16 @@ def _lines_from_sides(sides: list[NDArray[np.float64]]) -> list[list[tuple]]:
             if dist < best_d:
                 best, best_d = j, dist
         if best is None or best_d > 3.0:
-            raise ValueError("registration object not found: groove edges are not straight lines")
+            raise RegistrationError("groove edges are not straight lines", found=False)
         used.update((i, best))
         merged.append(_fit_line(np.vstack([sides[i], sides[best]])))
     if len(merged) != 4:
-        raise ValueError("registration object not found: expected four groove edges")
+        raise RegistrationError("expected four groove edges", found=False)
     ref = merged[0][1]
     group_a = [m for m in merged if abs(m[1] @ ref) > 0.7]
     group_b = [m for m in merged if abs(m[1] @ ref) <= 0.7]
     if len(group_a) != 2 or len(group_b) != 2:
-        raise ValueError("registration object not found: grooves are not two crossing pairs")
+        raise RegistrationError("grooves are not two crossing pairs", found=False)
     return [group_a, group_b]
 
 
@@ -248,7 +250,8 @@ def detect_registration_points(
     """All 16 corners of the plate's four light quadrants: raw pixels (16, 2) and beam-plane
     metres (16, 2). The eight straight edges (two per groove, four plate borders) are each
     refined along their whole length and intersected, which pins the homography over the
-    whole plate rather than only the crossing square. Raises ``ValueError`` with a reason."""
+    whole plate rather than only the crossing square. Raises
+    :class:`~vision.errors.RegistrationError` (a ``ValueError``) with the reason."""
     k, d = check_intrinsics(camera_matrix, distortion)
     inner = _detect_inner(image_gray, registration, k, d, x_axis_image_rad)
     hs, hp = registration.square_side_m / 2, registration.plate_side_m / 2
@@ -275,7 +278,7 @@ def detect_registration_points(
                 pts.append(_refine_line(image_gray, h0, k, d, local, step))
             ideal = undistort_points_px(np.vstack(pts), k, d)
             if len(ideal) < 20:
-                raise ValueError("registration object: plate edges not visible")
+                raise RegistrationError("plate edges not visible", found=True)
             lines_px.append(ideal)
             line = np.zeros(3)
             line[axis], line[2] = 1.0, -level
@@ -289,13 +292,14 @@ def detect_registration_points(
     # The refined inner corners must agree with the quadrants' own corners.
     moved = float(np.max(np.linalg.norm(raw[[5, 9, 10, 6]] - inner, axis=1)))
     if moved > MAX_CORNER_SHIFT_PX:
-        raise ValueError(
-            f"registration object: the fitted plate disagrees with its crossing square by "
-            f"{moved:.2f} px (not the registration object, or partly hidden)"
+        raise RegistrationError(
+            f"the fitted plate disagrees with its crossing square by "
+            f"{moved:.2f} px (not the registration object, or partly hidden)",
+            found=True,
         )
     h, w = image_gray.shape
     if np.any(raw < 0) or np.any(raw[:, 0] > w - 1) or np.any(raw[:, 1] > h - 1):
-        raise ValueError("registration object: a plate corner lies off the image")
+        raise RegistrationError("a plate corner lies off the image", found=True)
     return raw, _local_to_plane(registration, np.array(local16))
 
 
@@ -311,18 +315,21 @@ MAX_SHAPE_ERROR = 0.05
 
 
 def _check_fit(fit: LineHomographyFit, k: NDArray[np.float64] | None) -> None:
-    """Refuse (``ValueError`` with the reason) a registration the edges do not support."""
+    """Refuse (:class:`~vision.errors.RegistrationError`) a registration the edges do not
+    support."""
     for j, keep in enumerate(fit.inliers):
         share = float(np.mean(keep))
         if share < MIN_INLIER_SHARE:
-            raise ValueError(
-                f"registration object: edge {j} is not straight (only {100 * share:.0f} % of "
-                "its points on a line: hidden by something, or not the registration object)"
+            raise RegistrationError(
+                f"edge {j} is not straight (only {100 * share:.0f} % of its points on a "
+                "line: hidden by something, or not the registration object)",
+                found=True,
             )
     if not fit.rms_px <= MAX_EDGE_RMS_PX:
-        raise ValueError(
-            f"registration object: its edges scatter {fit.rms_px:.2f} px about the fitted "
-            f"object (more than {MAX_EDGE_RMS_PX} px: too noisy or not the object)"
+        raise RegistrationError(
+            f"its edges scatter {fit.rms_px:.2f} px about the fitted "
+            f"object (more than {MAX_EDGE_RMS_PX} px: too noisy or not the object)",
+            found=True,
         )
     if k is None:
         return
@@ -332,10 +339,11 @@ def _check_fit(fit: LineHomographyFit, k: NDArray[np.float64] | None) -> None:
     n1, n2 = float(np.linalg.norm(r1)), float(np.linalg.norm(r2))
     skew = abs(float(r1 @ r2)) / (n1 * n2)
     if abs(n1 / n2 - 1.0) > MAX_SHAPE_ERROR or skew > MAX_SHAPE_ERROR:
-        raise ValueError(
-            "registration object: the fitted plate is not a square seen through the camera "
+        raise RegistrationError(
+            "the fitted plate is not a square seen through the camera "
             f"matrix (axis ratio {n1 / n2:.3f}, skew {skew:.3f}): wrong intrinsics or a "
-            "misdetected object"
+            "misdetected object",
+            found=True,
         )
 
 
@@ -400,7 +408,8 @@ def detect_registration_corners(
     x_axis_image_rad: float = 0.0,
 ) -> NDArray[np.float64]:
     """Raw-pixel corners (4, 2) of the crossing square, in the order of
-    :func:`registration_plane_points_m`. Raises ``ValueError`` with the reason."""
+    :func:`registration_plane_points_m`. Raises
+    :class:`~vision.errors.RegistrationError` (a ``ValueError``) with the reason."""
     raw, _ = detect_registration_points(
         image_gray, registration, camera_matrix, distortion, x_axis_image_rad
     )
@@ -419,8 +428,9 @@ def calibration_from_registration(
     x_axis_image_rad: float = 0.0,
 ) -> Calibration:
     """Detect the registration object in a frame and build the :class:`Calibration`
-    from the 16 plate-quadrant corners (normalized DLT). Raises ``ValueError`` with the
-    reason when the object cannot be found."""
+    from the 16 plate-quadrant corners (normalized DLT). Raises
+    :class:`~vision.errors.RegistrationError` (a ``ValueError``) with the reason when the
+    object cannot be found."""
     if not isinstance(image_gray, np.ndarray) or image_gray.dtype != np.uint8:
         raise TypeError("image_gray must be a uint8 numpy array")
     image_pts, plane_pts = detect_registration_points(

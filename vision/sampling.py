@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import ParameterError
+
 
 def median(x: NDArray[np.float64]) -> float:
     """``np.median`` of a 1-D array (NaN if it holds one) by partition, without the
@@ -64,7 +66,9 @@ class BilinearPlan:
 
     def sample(self, image: NDArray[np.uint8]) -> NDArray[np.float64]:
         if image.shape != self.shape:
-            raise ValueError(f"plan made for images {self.shape}, got {image.shape}")
+            raise ParameterError(
+                "image", f"must have the plan's shape {self.shape}, got {image.shape}"
+            )
         flat = image.ravel()
         i00, i01, i10, i11 = self.idx
         fx, fy = self.fx, self.fy

@@ -30,7 +30,10 @@ from sim.beam import BeamProperties
 from sim.drives import FourBarDrive
 from sim.four_bar import FourBar
 from sim.result import SimResult
-from vision.synthetic.render import BeamPose, SceneSpec, encode, render_frame
+from vision.camera import camera_matrix
+from vision.codec import encode
+from vision.synthetic.render import render_frame
+from vision.synthetic.scene import BeamPose, SceneSpec
 
 log = logging.getLogger(__name__)
 
@@ -165,16 +168,15 @@ class SyntheticBench:
     def camera_info(self) -> dict[str, Any]:
         """foxglove.CameraCalibration content for the synthetic camera."""
         cam = self.rig.camera
-        f = cam.focal_length_px
-        cx, cy = (cam.width_px - 1) / 2.0, (cam.height_px - 1) / 2.0
+        k = camera_matrix(cam.focal_length_px, cam.width_px, cam.height_px)
         return {
             "width": cam.width_px,
             "height": cam.height_px,
             "distortion_model": "plumb_bob",
             "D": list(cam.distortion),
-            "K": [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0],
+            "K": k.ravel().tolist(),
             "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            "P": [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            "P": np.column_stack([k, np.zeros(3)]).ravel().tolist(),
         }
 
 

@@ -29,9 +29,11 @@ from vision import (
     decode,
     detect_registration_corners,
 )
+from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.measure import METHODS
-from vision.synthetic.render import BeamPose, Clutter, RenderTruth, SceneSpec, encode, render_frame
+from vision.synthetic.render import render_frame
+from vision.synthetic.scene import BeamPose, Clutter, RenderTruth, SceneSpec
 
 L_M, W_M = 0.835, 0.01905
 STROKE_DEG = (243.0, 330.0)
@@ -121,8 +123,8 @@ def _framing(
             cam, pose, reg, beam_length_m=L_M, beam_width_m=W_M, hub_offset_m=0.008
         )
         try:
-            px = spec.plane_to_image_px(pts)
-            tip_px = spec.plane_to_image_px(np.array([tip, tip + 0.001 * n]))
+            px = spec.to_px(pts)
+            tip_px = spec.to_px(np.array([tip, tip + 0.001 * n]))
         except ValueError:
             continue
         inside = np.all(px > 30) and np.all(px[:, 0] < cam.width_px - 30)

@@ -25,13 +25,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def camera_info_from_rig(rig: Rig) -> dict[str, Any]:
     """``/camera/info`` content from the rig's nominal intrinsics (principal point at the
     image centre, OpenCV plumb_bob distortion)."""
+    from vision.camera import camera_matrix
+
     cam = rig.camera
-    f = cam.focal_length_px
-    cx, cy = (cam.width_px - 1) / 2.0, (cam.height_px - 1) / 2.0
     return {
         "width": cam.width_px,
         "height": cam.height_px,
-        "K": [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0],
+        "K": camera_matrix(cam.focal_length_px, cam.width_px, cam.height_px).ravel().tolist(),
         "D": list(cam.distortion),
         "distortion_model": "plumb_bob",
     }

@@ -65,14 +65,11 @@ def frame_overlay(
 
 def stream_processed(processed: Processed, log_path: Path, viewer: RunViewer) -> None:
     """Log a processed run: results series, every frame with its overlays, events."""
-    from vision import Measurer
-
     ds = processed.results
     viewer.log_results(ds)
     sim = processed.sim
     lat = CubicSpline(sim.time_s, sim.station_lateral_m, axis=0)
     lon = CubicSpline(sim.time_s, sim.station_longitudinal_m, axis=0)
-    measurer = Measurer(processed.calibration, stations_m=tuple(ds["gauge"].values))
     t0_ns = int(ds.attrs.get("t_zero_ns", 0))
     frame_t = ds["frame_time"].values
     by_seq = {f.sequence: (i, f) for i, f in enumerate(processed.frames)}
@@ -86,6 +83,6 @@ def stream_processed(processed: Processed, log_path: Path, viewer: RunViewer) ->
         shape = None
         if np.isfinite(t) and sim.time_s[0] <= t <= sim.time_s[-1]:
             shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
-        overlay = frame_overlay(measured.measurement, measurer.to_px, shape, length)
+        overlay = frame_overlay(measured.measurement, processed.calibration.to_px, shape, length)
         viewer.log_frame(t, frame.data, frame.encoding, overlay)
     viewer.log_events(processed.events, t0_ns=t0_ns)

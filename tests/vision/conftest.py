@@ -8,7 +8,7 @@ import pytest
 
 from vision.calibration import Calibration
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.synthetic.render import BeamPose, SceneSpec
+from vision.synthetic.scene import BeamPose, SceneSpec
 
 L_M = 0.835
 W_M = 0.01905

@@ -29,7 +29,7 @@ def test_round_trip_through_json(tmp_path: Path) -> None:
     )
     again = load_calibration(_write(tmp_path, cal.to_json()))
     np.testing.assert_allclose(again.fit.matrix, cal.fit.matrix)
-    np.testing.assert_allclose(again.image_to_plane_m(np.array(IMG)), PLANE, atol=1e-12)
+    np.testing.assert_allclose(again.to_plane(np.array(IMG)), PLANE, atol=1e-12)
     assert again.beam_length_m == 0.835
 
 

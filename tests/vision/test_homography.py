@@ -5,12 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vision.homography import (
-    DegeneratePointsError,
-    apply_homography,
-    collineation_4pt,
-    dlt_homography,
-)
+from vision.errors import DegeneratePointsError
+from vision.homography import apply_homography, collineation_4pt, dlt_homography
 
 SQUARE = np.array([[0.0, 0.0], [0.04, 0.0], [0.04, 0.04], [0.0, 0.04]])
 

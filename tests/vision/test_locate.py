@@ -16,9 +16,9 @@ def test_premapped_search_circles_change_nothing_and_hub_centres_lie_on_its_axis
 ) -> None:
     frame = render_frame(nominal_spec, [vt.bent(math.radians(300), 0.05)])
     m = Measurer(vt.truth_calibration(frame.truth))
-    args = (frame.image, m.to_px, vt.L_M, vt.W_M, m.px_m)
+    args = (frame.image, m.calibration.to_px, vt.L_M, vt.W_M, m.px_m)
     a = locate(*args)
-    b = locate(*args, circles=search_circles(m.to_px, vt.L_M, vt.W_M, m.px_m))
+    b = locate(*args, circles=search_circles(m.calibration.to_px, vt.L_M, vt.W_M, m.px_m))
     for name in ("beam", "clamp", "hub_back", "hub_width", "tip", "hub"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     # The hub's profile centres (the first axis estimate) lie on its axis, which passes

@@ -10,10 +10,11 @@ from vision import (
     Measurer,
     calibration_from_registration,
     detect_registration_corners,
-    plane_to_image_px,
 )
+from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.synthetic.render import BeamPose, Clutter, encode, render_frame
+from vision.synthetic.render import render_frame, static_layers
+from vision.synthetic.scene import BeamPose, Clutter
 
 
 def _errors(m, tr) -> tuple[float, float, float]:
@@ -53,10 +54,10 @@ def test_centreline_overlay_lies_on_the_beam(nominal_spec, vt) -> None:
     px = m.centreline_px[5:-5]
     v = frame.image[np.round(px[:, 1]).astype(int), np.round(px[:, 0]).astype(int)]
     assert np.median(v) > 180
-    # plane_to_image_px agrees with the renderer's exact projection.
+    # The calibration's mapping agrees with the renderer's exact projection.
     np.testing.assert_allclose(
-        plane_to_image_px(m.centreline_plane_m, cal),
-        nominal_spec.plane_to_image_px(m.centreline_plane_m),
+        cal.to_px(m.centreline_plane_m),
+        nominal_spec.to_px(m.centreline_plane_m),
         atol=1e-6,
     )
 
@@ -66,7 +67,7 @@ def test_bad_frames_give_ok_false_with_a_reason(nominal_spec, vt) -> None:
     m = Measurer(vt.truth_calibration(frame.truth))
     black = m.measure(np.zeros_like(frame.image))
     assert not black.ok and "blank" in black.reason and math.isnan(black.tip_lateral_m)
-    empty = np.clip(nominal_spec._static()["lit"], 0, 255).astype(np.uint8)
+    empty = np.clip(static_layers(nominal_spec)["lit"], 0, 255).astype(np.uint8)
     no_beam = m.measure(empty)
     assert not no_beam.ok and "no beam" in no_beam.reason
     assert np.all(np.isnan(no_beam.lateral_at_stations_m))
@@ -108,7 +109,7 @@ def test_registration_is_detected_to_a_tenth_of_a_pixel(nominal_spec, vt) -> Non
     assert len(cal.image_points_px) == 16  # every quadrant corner of the plate
     # All 16 map onto their plane points as the renderer's exact projection says.
     np.testing.assert_allclose(
-        cal.image_points_px, nominal_spec.plane_to_image_px(cal.plane_points_m), atol=0.08
+        cal.image_points_px, nominal_spec.to_px(cal.plane_points_m), atol=0.08
     )
     assert cal.fit.rms_residual < 2e-5  # m
     m = Measurer(cal).measure(frame.image)

@@ -1,2 +1,3 @@
-"""The scene renderer: the bench drawn as the camera sees it, for tests and the synthetic
-camera, with the truth of every frame."""
+"""The synthetic camera's picture of the bench, with the truth of every frame: the scene
+description (``scene``), its rasteriser (``render``) and the camera's placement relative
+to the beam plane (``pose``). Used by the synthetic bench and the tests."""

@@ -1,269 +1,37 @@
 """Scene renderer: the bench as a camera sees it (the synthetic camera and the tests).
 
-Everything drawn lies in the beam plane: a dark background with optional clutter, the
-registration plate (light, with two orthogonal dark grooves crossing in a square), the hub
-(a wider bright bar coaxial with the clamped beam end, extending back past the pivot) and
-the beam (a bright strip of the beam's width along its deflected centre line, ending
-square at the tip). Each pixel is traced back to the plane through the lens distortion and
-the plane-to-image homography; pixels near edges are supersampled (``supersample`` x
-``supersample`` samples through the local Jacobian of the pixel-to-plane map). Static parts
-are drawn once per :class:`SceneSpec`; a frame redraws only a band around the hub and beam.
-Motion blur averages the coverage of several poses over the exposure.
+The scene (:class:`~vision.synthetic.scene.SceneSpec`, :class:`BeamPose`, the truth) is
+described in :mod:`vision.synthetic.scene`; this module rasterises it. Everything drawn
+lies in the beam plane: a dark background with optional clutter, the registration plate
+(light, with two orthogonal dark grooves crossing in a square), the hub (a wider bright
+bar coaxial with the clamped beam end, extending back past the pivot) and the beam (a
+bright strip of the beam's width along its deflected centre line, ending square at the
+tip). Each pixel is traced back to the plane through the lens distortion and the
+plane-to-image homography; pixels near edges are supersampled (``supersample`` x
+``supersample`` samples through the local Jacobian of the pixel-to-plane map). Static
+parts are drawn once per :class:`SceneSpec` (:func:`static_layers`); a frame redraws only
+a band around the hub and beam. Motion blur averages the coverage of several poses over
+the exposure.
 """
 
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import cv2
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from vision.camera import camera_matrix, distort_normalized, undistort_points_px
-from vision.codec import decode
-from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
+from vision.camera import undistort_points_px
+from vision.errors import BehindCameraError, ParameterError
 from vision.homography import apply_homography
-from vision.synthetic.pose import camera_extrinsics, ideal_from_plane
+from vision.synthetic.scene import BeamPose, Clutter, RenderedFrame, RenderTruth, SceneSpec
 
-__all__ = [
-    "BeamPose",
-    "Clutter",
-    "RenderTruth",
-    "RenderedFrame",
-    "SceneSpec",
-    "decode",
-    "encode",
-    "render_frame",
-]
-
-DEFAULT_STATIONS_M = (0.005, 0.204, 0.403, 0.603)
+__all__ = ["render_frame", "static_layers"]
 
 
-@dataclass(frozen=True, eq=False)
-class BeamPose:
-    """The beam's shape at one instant.
-
-    Parameters
-    ----------
-    hub_angle_rad : direction of the hub axis from the pivot toward the beam, CCW from +X.
-    stations_m : (S,) ascending distances from the clamp along the undeformed beam (0 = clamp).
-    lateral_m : (S,) deflection perpendicular to the hub axis, positive toward increasing
-        hub angle.
-    longitudinal_m : (S,) deflection along the hub axis (negative when pulled in).
-    """
-
-    hub_angle_rad: float
-    stations_m: NDArray[np.float64]
-    lateral_m: NDArray[np.float64]
-    longitudinal_m: NDArray[np.float64]
-
-    def __post_init__(self) -> None:
-        s = np.asarray(self.stations_m, dtype=np.float64).ravel()
-        if s.size < 2 or np.any(np.diff(s) <= 0) or not np.all(np.isfinite(s)):
-            raise ValueError("stations_m must hold 2 or more finite ascending stations")
-        for name in ("lateral_m", "longitudinal_m"):
-            v = np.asarray(getattr(self, name), dtype=np.float64).ravel()
-            if v.shape != s.shape or not np.all(np.isfinite(v)):
-                raise ValueError(f"{name} must be finite with the shape of stations_m {s.shape}")
-            object.__setattr__(self, name, v)
-        if not math.isfinite(self.hub_angle_rad):
-            raise ValueError("hub_angle_rad must be finite")
-        object.__setattr__(self, "stations_m", s)
-
-    @classmethod
-    def straight(cls, hub_angle_rad: float, length_m: float) -> BeamPose:
-        """The undeflected (rigid) beam."""
-        s = np.array([0.0, length_m])
-        return cls(hub_angle_rad, s, np.zeros(2), np.zeros(2))
-
-    @classmethod
-    def from_slope(
-        cls, hub_angle_rad: float, length_m: float, slope_rad: Any, n: int = 401
-    ) -> BeamPose:
-        """An inextensible shape from its slope ``slope_rad(s)`` relative to the hub axis
-        (a callable of stations, m); the deflections follow by integration."""
-        s = np.linspace(0.0, length_m, n)
-        th = np.asarray(slope_rad(s), dtype=np.float64)
-        ds = np.diff(s)
-        c, sn = np.cos(th), np.sin(th)
-        x = np.concatenate([[0.0], np.cumsum(0.5 * (c[1:] + c[:-1]) * ds)])
-        y = np.concatenate([[0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * ds)])
-        return cls(hub_angle_rad, s, y, x - s)
-
-    def at(self, stations_m: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(lateral, longitudinal) deflections at ``stations_m``, interpolated."""
-        q = np.asarray(stations_m, dtype=np.float64)
-        if len(self.stations_m) >= 4:
-            from scipy.interpolate import CubicSpline
-
-            lat = CubicSpline(self.stations_m, self.lateral_m)(q)
-            lon = CubicSpline(self.stations_m, self.longitudinal_m)(q)
-            return np.asarray(lat), np.asarray(lon)
-        return (
-            np.interp(q, self.stations_m, self.lateral_m),
-            np.interp(q, self.stations_m, self.longitudinal_m),
-        )
-
-
-@dataclass(frozen=True)
-class Clutter:
-    """A rectangle lying in the beam plane: centre (x, y) m, size (long, short) m, angle
-    of its long side from +X, brightness in DN (before lighting)."""
-
-    center_m: tuple[float, float]
-    size_m: tuple[float, float]
-    angle_rad: float = 0.0
-    level_dn: float = 230.0
-
-
-@dataclass(frozen=True, eq=False)
-class SceneSpec:
-    """Everything static about a synthetic view. Build with :meth:`from_rig`.
-
-    Brightness levels are in DN before lighting (``lighting_gradient``: fractional change
-    of illumination across the image width; ``vignetting``: fractional loss at the corners).
-    ``hub_length_m``/``hub_width_m`` size the hub bar: it ends at the clamp
-    (``hub_offset_m`` from the pivot along the hub axis) and extends back from there.
-    """
-
-    camera: CameraConfig
-    pose: CameraPoseConfig
-    registration: RegistrationConfig
-    beam_length_m: float = 0.835
-    beam_width_m: float = 0.01905
-    hub_offset_m: float = 0.008
-    hub_length_m: float = 0.20
-    hub_width_m: float = 0.04
-    noise_dn: float = 2.0
-    seed: int = 0
-    background_dn: float = 40.0
-    beam_dn: float = 215.0
-    hub_dn: float = 190.0
-    plate_dn: float = 205.0
-    groove_dn: float = 45.0
-    lighting_gradient: float = 0.0
-    lighting_azimuth_rad: float = 0.0
-    vignetting: float = 0.0
-    blur_sigma_px: float = 0.6
-    supersample: int = 4
-    clutter: tuple[Clutter, ...] = ()
-    draw_registration: bool = True
-    stations_m: tuple[float, ...] = DEFAULT_STATIONS_M
-    _cache: dict[str, Any] = field(default_factory=dict, init=False, repr=False)
-    _cache_lock: threading.Lock = field(
-        default_factory=threading.Lock, init=False, repr=False, compare=False
-    )
-
-    def __post_init__(self) -> None:
-        for name in ("beam_length_m", "beam_width_m", "hub_length_m", "hub_width_m"):
-            v = getattr(self, name)
-            if not math.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be positive, got {v!r}")
-        if self.hub_width_m <= self.beam_width_m:
-            raise ValueError("hub_width_m must exceed beam_width_m (the hub is the wider bar)")
-        if self.noise_dn < 0 or self.blur_sigma_px < 0:
-            raise ValueError("noise_dn and blur_sigma_px must be >= 0")
-        if not 1 <= self.supersample <= 16:
-            raise ValueError(f"supersample must be in 1..16, got {self.supersample}")
-
-    @classmethod
-    def from_rig(
-        cls,
-        camera: CameraConfig,
-        pose: CameraPoseConfig,
-        registration: RegistrationConfig,
-        *,
-        beam_length_m: float,
-        beam_width_m: float,
-        hub_offset_m: float,
-        noise_dn: float = 2.0,
-        seed: int = 0,
-        **options: Any,
-    ) -> SceneSpec:
-        """A scene from the rig's camera, camera pose and registration sections."""
-        return cls(
-            camera=camera,
-            pose=pose,
-            registration=registration,
-            beam_length_m=beam_length_m,
-            beam_width_m=beam_width_m,
-            hub_offset_m=hub_offset_m,
-            noise_dn=noise_dn,
-            seed=seed,
-            **options,
-        )
-
-    # -- geometry -------------------------------------------------------------------
-    @property
-    def camera_matrix(self) -> NDArray[np.float64]:
-        c = self.camera
-        return camera_matrix(c.focal_length_px, c.width_px, c.height_px)
-
-    @property
-    def distortion(self) -> NDArray[np.float64]:
-        return np.asarray(self.camera.distortion, dtype=np.float64)
-
-    @property
-    def ideal_from_plane(self) -> NDArray[np.float64]:
-        r, t = camera_extrinsics(self.pose)
-        return ideal_from_plane(self.camera_matrix, r, t)
-
-    def plane_to_image_px(self, points_m: ArrayLike) -> NDArray[np.float64]:
-        """Exact projection of beam-plane points (N, 2), m, to raw pixels (N, 2)."""
-        pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
-        r, t = camera_extrinsics(self.pose)
-        cam = pts @ r[:, :2].T + t
-        if np.any(cam[:, 2] <= 0):
-            raise ValueError("a point lies behind the camera")
-        return distort_normalized(cam[:, :2] / cam[:, 2:3], self.camera_matrix, self.distortion)
-
-    def registration_points_m(self) -> NDArray[np.float64]:
-        """(4, 2) corners of the registration square, CCW in the plane, starting at the
-        corner at (-s/2, -s/2) of the square's own frame (first groove = its x axis)."""
-        reg = self.registration
-        h = reg.square_side_m / 2.0
-        local = np.array([[-h, -h], [h, -h], [h, h], [-h, h]])
-        c, s = math.cos(reg.angle_rad), math.sin(reg.angle_rad)
-        return local @ np.array([[c, s], [-s, c]]) + np.asarray(reg.center_m)
-
-    # -- cached rasters ---------------------------------------------------------------
-    def _static(self) -> dict[str, Any]:
-        with self._cache_lock:  # frames may render in several threads
-            if not self._cache:
-                self._cache.update(_build_static(self))
-        return self._cache
-
-
-@dataclass(frozen=True, eq=False)
-class RenderTruth:
-    """Ground truth of a rendered frame (means over the exposure's poses)."""
-
-    hub_angle_rad: float
-    tip_lateral_m: float
-    tip_longitudinal_m: float
-    stations_m: NDArray[np.float64]
-    lateral_at_stations_m: NDArray[np.float64]
-    corners_px: NDArray[np.float64]
-    plane_points_m: NDArray[np.float64]
-    camera_matrix: NDArray[np.float64]
-    distortion: NDArray[np.float64]
-    clamp_plane_m: NDArray[np.float64]
-    tip_plane_m: NDArray[np.float64]
-
-
-@dataclass(frozen=True, eq=False)
-class RenderedFrame:
-    """``image``: uint8 gray [row, col]; ``truth``: what it shows."""
-
-    image: NDArray[np.uint8]
-    truth: RenderTruth
-
-
-# ---------------------------------------------------------------------------------------
 def _pixel_maps(spec: SceneSpec) -> tuple[NDArray[Any], ...]:
     """Plane coordinates of every pixel centre and the pixel-to-plane Jacobian."""
     w, h = spec.camera.width_px, spec.camera.height_px
@@ -344,8 +112,8 @@ def _draw_convex(
     """Paint a convex plane polygon into ``refl`` with supersampled edges."""
     h, w = refl.shape
     try:
-        px = spec.plane_to_image_px(corners_m)
-    except ValueError:
+        px = spec.to_px(corners_m)
+    except BehindCameraError:
         return
     x0, y0 = np.floor(px.min(axis=0)).astype(int) - 3
     x1, y1 = np.ceil(px.max(axis=0)).astype(int) + 4
@@ -372,6 +140,16 @@ def _draw_convex(
         inside &= nx * px_x + ny * px_y - c <= 0
     cov = inside.mean(axis=1)
     region[edge_r, edge_c] = region[edge_r, edge_c] * (1 - cov) + level * cov
+
+
+def static_layers(spec: SceneSpec) -> dict[str, Any]:
+    """What a scene draws once, built on first use and kept on the spec: pixel maps,
+    reflectance, lighting gain, the noise field and ``"lit"``, the float32 [row, col]
+    picture of the scene without hub, beam and noise."""
+    with spec._cache_lock:  # frames may render in several threads
+        if not spec._cache:
+            spec._cache.update(_build_static(spec))
+    return spec._cache
 
 
 def _build_static(spec: SceneSpec) -> dict[str, Any]:
@@ -496,8 +274,8 @@ def _band_mask(spec: SceneSpec, shapes: list[_Shape], margin_m: float) -> NDArra
         )
         for poly in (poly_m, hub_m):
             try:
-                px = spec.plane_to_image_px(poly)
-            except ValueError:
+                px = spec.to_px(poly)
+            except BehindCameraError:
                 continue
             px = np.clip(px, -4 * w, 5 * w)
             cv2.fillPoly(mask, [np.round(px * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
@@ -520,11 +298,11 @@ def render_frame(
     RenderedFrame with ``image`` uint8 [row, col] (height_px x width_px) and ``truth``.
     """
     if len(poses) == 0:
-        raise ValueError("poses must hold at least one BeamPose")
+        raise ParameterError("poses", "must hold at least one BeamPose")
     for i, p in enumerate(poses):
         if not isinstance(p, BeamPose):
             raise TypeError(f"poses[{i}] must be a BeamPose, got {type(p).__name__}")
-    st = spec._static()
+    st = static_layers(spec)
     maps = st["maps"]
     rng = np.random.default_rng(spec.seed + 1) if rng is None else rng
     shapes = [_Shape(spec, p) for p in poses]
@@ -616,27 +394,10 @@ def _truth(spec: SceneSpec, poses: Sequence[BeamPose], shapes: list[_Shape]) -> 
         tip_longitudinal_m=tip_lon,
         stations_m=st_m,
         lateral_at_stations_m=lat_st,
-        corners_px=spec.plane_to_image_px(plane_pts),
+        corners_px=spec.to_px(plane_pts),
         plane_points_m=plane_pts,
         camera_matrix=spec.camera_matrix,
         distortion=spec.distortion,
         clamp_plane_m=clamp,
         tip_plane_m=tip,
     )
-
-
-def encode(image: NDArray[np.uint8], encoding: str = "jpeg", quality: int = 90) -> bytes:
-    """Compress a uint8 gray [row, col] image as JPEG (``quality`` 1-100) or PNG."""
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 2:
-        raise TypeError("image must be a uint8 [row, col] numpy array")
-    if encoding == "jpeg":
-        if not 1 <= quality <= 100:
-            raise ValueError(f"quality must be in 1..100, got {quality!r}")
-        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
-    elif encoding == "png":
-        ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    else:
-        raise ValueError(f"encoding must be 'jpeg' or 'png', got {encoding!r}")
-    if not ok:
-        raise ValueError("the image could not be encoded")
-    return bytes(buf)

@@ -10,8 +10,10 @@ import pytest
 
 from pipelines.cli import main
 from vision import Calibration
+from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
-from vision.synthetic.render import BeamPose, SceneSpec, encode, render_frame
+from vision.synthetic.render import render_frame
+from vision.synthetic.scene import BeamPose, SceneSpec
 
 
 @pytest.fixture(scope="module")

@@ -1,13 +1,12 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
 
-from vision.codec import decode
-from vision.synthetic.render import BeamPose, encode, render_frame
+from vision.synthetic.render import render_frame
+from vision.synthetic.scene import BeamPose
 
 
 def test_straight_beam_centre_line_matches_the_geometry(clean_spec, vt) -> None:
@@ -18,7 +17,7 @@ def test_straight_beam_centre_line_matches_the_geometry(clean_spec, vt) -> None:
     img = frame.image.astype(float)
     e = np.array([math.cos(th), math.sin(th)])
     a = np.array([0.3, 0.7])
-    ends = clean_spec.plane_to_image_px(a[:, None] * e)
+    ends = clean_spec.to_px(a[:, None] * e)
     bg = clean_spec.background_dn
     errs = []
     for x in range(int(ends[0, 0]) + 5, int(ends[1, 0]) - 5, 7):
@@ -34,18 +33,6 @@ def test_straight_beam_centre_line_matches_the_geometry(clean_spec, vt) -> None:
     assert frame.truth.tip_lateral_m == 0.0 and frame.truth.hub_angle_rad == th
 
 
-def test_truth_of_a_bent_beam(vt) -> None:
-    pose = vt.bent(0.0, 0.1)
-    lat, lon = pose.at(np.array([vt.L_M]))
-    # Cubic shape of slope th_L(2 s/L - s^2/L^2): w(L) = 2/3 th_L L for small slopes.
-    assert lat[0] == pytest.approx(2 / 3 * 0.1 * vt.L_M, rel=5e-3)
-    assert -0.01 < lon[0] < 0  # pulled in, inextensible
-    s = np.linspace(0, vt.L_M, 200)
-    la, lo = pose.at(s)
-    arc = np.sum(np.hypot(np.diff(s + lo), np.diff(la)))
-    assert arc == pytest.approx(vt.L_M, rel=1e-6)
-
-
 def test_registration_corners_in_truth_are_dark_light_corners(clean_spec, vt) -> None:
     frame = render_frame(clean_spec, [BeamPose.straight(math.radians(280), vt.L_M)])
     c = frame.truth.corners_px
@@ -59,20 +46,10 @@ def test_registration_corners_in_truth_are_dark_light_corners(clean_spec, vt) ->
         assert img[round(out[1]), round(out[0])] > 150
 
 
-def test_noise_level_and_encoding_round_trip(nominal_spec, vt) -> None:
+def test_noise_level(nominal_spec, vt) -> None:
     frame = render_frame(nominal_spec, [BeamPose.straight(4.5, vt.L_M)])
     patch = frame.image[1400:1500, 100:300].astype(float)
     assert patch.std() == pytest.approx(2.0, rel=0.15)
-    png = decode(encode(frame.image, "png"))
-    np.testing.assert_array_equal(png, frame.image)
-    jpg = decode(encode(frame.image, "jpeg", quality=90))
-    assert np.abs(jpg.astype(float) - frame.image).mean() < 2.0
-    with pytest.raises(ValueError, match="encoding"):
-        encode(frame.image, "gif")
-    with pytest.raises(TypeError):
-        encode(frame.image.astype(float))  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="not a readable image"):
-        decode(b"not an image")
 
 
 def test_motion_blur_spreads_the_beam(clean_spec, vt) -> None:
@@ -83,22 +60,6 @@ def test_motion_blur_spreads_the_beam(clean_spec, vt) -> None:
     assert np.abs(blurred.astype(int) - sharp).max() > 50
 
 
-def test_rendering_is_fast(nominal_spec, vt) -> None:
-    pose = vt.bent(math.radians(300), 0.05)
-    render_frame(nominal_spec, [pose])
-    t0 = time.perf_counter()
-    for _ in range(3):
-        encode(render_frame(nominal_spec, [pose]).image, "jpeg", 90)
-    per_frame = (time.perf_counter() - t0) / 3
-    assert per_frame < 0.2, per_frame  # target well under 0.1 s; slack for a loaded machine
-
-
-def test_bad_poses_are_refused(clean_spec, vt) -> None:
+def test_no_poses_are_refused(clean_spec, vt) -> None:
     with pytest.raises(ValueError, match="poses"):
         render_frame(clean_spec, [])
-    with pytest.raises(ValueError, match="stations_m"):
-        BeamPose(0.0, np.array([0.0]), np.zeros(1), np.zeros(1))
-    with pytest.raises(ValueError, match="lateral_m"):
-        BeamPose(0.0, np.array([0.0, 1.0]), np.zeros(3), np.zeros(2))
-    with pytest.raises(ValueError, match="hub_width_m"):
-        vt.make_spec(hub_width_m=vt.W_M / 2)

@@ -1,0 +1,71 @@
+"""The record of one frame's measurement, whichever method made it."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+_NAN2 = np.full(2, np.nan)
+
+
+@dataclass(frozen=True, eq=False)
+class FrameMeasurement:
+    """What one frame shows. Numbers are NaN when ``ok`` is False.
+
+    Attributes
+    ----------
+    ok, reason : whether the frame gave a measurement, and why not.
+    hub_angle_rad : hub axis direction (pivot toward beam), CCW from +X, in [0, 2 pi).
+    tip_lateral_m, tip_longitudinal_m : tip deflection relative to the rigid beam (the hub
+        axis extended from the clamp).
+    stations_m, lateral_at_stations_m : (S,) lateral deflection at those distances from
+        the clamp along the beam.
+    centreline_plane_m, centreline_px : (K, 2) centre line, plane (m) and raw image (px).
+    hub_line_px : (2, 2) two raw-image points on the hub axis (back end, clamp).
+    clamp_plane_m, tip_plane_m : (2,) where the free beam begins / the tip's end centre.
+    hub_width_m, beam_width_m : widths measured in the frame.
+    edge_rms_m : RMS residual of the beam edge fits.
+    hub_angle_std_rad, tip_lateral_std_m : standard uncertainties predicted from the edge
+        fits' residuals (noise only; calibration errors are not included).
+    blur_px : median ramp width of the beam's edges along the scan lines, px (motion blur
+        widens it; frames beyond ``max_blur_px`` are flagged).
+    """
+
+    ok: bool
+    reason: str = ""
+    hub_angle_rad: float = math.nan
+    tip_lateral_m: float = math.nan
+    tip_longitudinal_m: float = math.nan
+    stations_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    lateral_at_stations_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    centreline_plane_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+    centreline_px: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+    hub_line_px: NDArray[np.float64] = field(default_factory=lambda: np.full((2, 2), np.nan))
+    clamp_plane_m: NDArray[np.float64] = field(default_factory=lambda: _NAN2.copy())
+    tip_plane_m: NDArray[np.float64] = field(default_factory=lambda: _NAN2.copy())
+    hub_width_m: float = math.nan
+    beam_width_m: float = math.nan
+    edge_rms_m: float = math.nan
+    blur_px: float = math.nan
+    hub_angle_std_rad: float = math.nan
+    tip_lateral_std_m: float = math.nan
+    method: str = "default"
+
+    def to_dict(self) -> dict[str, object]:
+        """The JSON-able summary (what ``beambench measure --json`` prints)."""
+
+        def num(x: float) -> float | None:
+            return None if not math.isfinite(x) else float(x)
+
+        return {
+            "ok": self.ok,
+            "reason": self.reason,
+            "hub_angle_rad": num(self.hub_angle_rad),
+            "tip_lateral_m": num(self.tip_lateral_m),
+            "tip_longitudinal_m": num(self.tip_longitudinal_m),
+            "stations_m": [float(s) for s in self.stations_m],
+            "lateral_at_stations_m": [num(float(v)) for v in self.lateral_at_stations_m],
+        }

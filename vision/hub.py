@@ -1,0 +1,175 @@
+"""The hub in a frame (the default method's hub steps): its axis and its end faces.
+
+The hub is the wider bright bar the beam is clamped in. Its axis is fitted to points on
+its two long edges as two parallel lines (:func:`hub_axis`), after a rough axis through
+the located hub (:func:`rough_axis`) has placed the searches. Its end faces, the clamp
+(where the shoulders beside the beam end) and the back, are bright-to-dark edges along the
+axis found by 1-D edge moments of profiles sampled along it (:func:`end_edge`, which also
+finds the beam's tip face). Points are beam-plane (x, y) in metres; ``to_px`` maps them to
+raw image pixels (:meth:`vision.calibration.Calibration.to_px`) and ``px_m`` is the plane
+size of a pixel, which sets the sampling step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from vision.centreline import correlation_inflation
+from vision.errors import FrameFailure
+from vision.locate import Rough, ToPx
+from vision.sampling import bilinear, median
+
+
+def rough_axis(rough: Rough) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Unit direction (back to clamp), normal and offset along the normal of the line
+    through the hub's rough profile centres and the rough clamp (least squares)."""
+    hub = rough.hub if len(rough.hub) else rough.hub_back[None, :]
+    pts = np.vstack([hub, rough.clamp[None, :]])
+    c = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
+    e = vt[0] if vt[0] @ (rough.clamp - rough.hub_back) > 0 else -vt[0]
+    n = np.array([-e[1], e[0]])
+    return e, n, float(c @ n)
+
+
+def hub_axis(
+    pa: NDArray[np.float64],
+    pb: NDArray[np.float64],
+    back: NDArray[np.float64],
+    front: NDArray[np.float64],
+    e: NDArray[np.float64],
+    margin: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float, float]:
+    """Hub axis from points (plane, m) on its two long edges (``pa``, ``pb``), those
+    ``margin`` clear of ``back`` and ``front`` (the end faces), fitted as parallel lines.
+    ``e``: the rough axis direction. Returns the unit direction (back to front) and
+    normal, the axis offset along the normal, the width and the standard uncertainty of
+    the direction (rad)."""
+    length = float((front - back) @ e)
+    sa, sb = (pa - back) @ e, (pb - back) @ e
+    pa = pa[(sa > margin) & (sa < length - margin)]
+    pb = pb[(sb > margin) & (sb < length - margin)]
+    if len(pa) < 5 or len(pb) < 5:
+        raise FrameFailure("hub edges not visible")
+    # Two robust passes: the common direction of both edges (the major axis of their
+    # scatter about their own centroids, in closed form), then drop points beyond
+    # four robust sigmas across it. x and y apart: (N, 2) arrays are slow to operate on.
+    xa, ya, xb, yb = pa[:, 0], pa[:, 1], pb[:, 0], pb[:, 1]
+    for _ in range(2):
+        na, nb = len(xa), len(xb)  # sum / n: ndarray.mean's wrapper costs more here
+        dxa, dya = xa - xa.sum() / na, ya - ya.sum() / na
+        dxb, dyb = xb - xb.sum() / nb, yb - yb.sum() / nb
+        sxx = float(dxa @ dxa + dxb @ dxb)
+        syy = float(dya @ dya + dyb @ dyb)
+        sxy = float(dxa @ dya + dxb @ dyb)
+        th = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+        e2 = np.array([math.cos(th), math.sin(th)])
+        e2 = e2 if e2 @ e > 0 else -e2
+        ra, rb = dya * e2[0] - dxa * e2[1], dyb * e2[0] - dxb * e2[1]
+        sig = 1.4826 * median(np.abs(np.concatenate([ra, rb]))) + 1e-9
+        ka, kb = np.abs(ra) < 4 * sig, np.abs(rb) < 4 * sig
+        if ka.sum() < 3 or kb.sum() < 3:
+            raise FrameFailure("hub edges not straight")
+        xa, ya, xb, yb = xa[ka], ya[ka], xb[kb], yb[kb]
+        e = e2
+    n = np.array([-e[1], e[0]])
+    pa, pb = np.column_stack([xa, ya]), np.column_stack([xb, yb])
+    ca, cb = np.array([xa.mean(), ya.mean()]), np.array([xb.mean(), yb.mean()])
+    ba, bb = float(ca @ n), float(cb @ n)
+    # Direction uncertainty of the common-direction fit: residual / spread along it.
+    res = np.concatenate([(pa - ca) @ n, (pb - cb) @ n])
+    spread = float(np.sum(((pa - ca) @ e) ** 2) + np.sum(((pb - cb) @ e) ** 2))
+    dof = max(len(res) - 3, 1)
+    infl = max(correlation_inflation(_along(pa, e, n)), correlation_inflation(_along(pb, e, n)))
+    sd = math.sqrt(float(np.sum(res**2)) / dof / max(spread, 1e-18) * infl)
+    return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
+
+
+def clamp_face(
+    image: NDArray[np.uint8],
+    origin: NDArray[np.float64],
+    e: NDArray[np.float64],
+    n: NDArray[np.float64],
+    hub_w: float,
+    w_beam: float,
+    *,
+    to_px: ToPx,
+    px_m: float,
+) -> float:
+    """Position along the axis (from ``origin``) where the hub's shoulders end."""
+    inner, outer = w_beam / 2, hub_w / 2
+    if outer - inner < 3 * px_m:
+        raise FrameFailure("hub not wider than the beam by enough to find the clamp")
+    lat = np.linspace(inner + 0.3 * (outer - inner), outer - 0.3 * (outer - inner), 3)
+    lateral = np.concatenate([lat, -lat])
+    return end_edge(image, origin, e, n, lateral, 0.0, hub_w, to_px=to_px, px_m=px_m)
+
+
+def back_face(
+    image: NDArray[np.uint8],
+    clamp: NDArray[np.float64],
+    e: NDArray[np.float64],
+    n: NDArray[np.float64],
+    hub_w: float,
+    guess_a: float,
+    *,
+    to_px: ToPx,
+    px_m: float,
+) -> float:
+    """Axis coordinate (from the clamp, negative) of the hub's back end face."""
+    lat = np.linspace(-0.6, 0.6, 5) * hub_w / 2
+    reach = 0.5 * min(abs(guess_a), 2.0 * hub_w)
+    return -end_edge(image, clamp, -e, n, lat, -guess_a, reach, to_px=to_px, px_m=px_m)
+
+
+def end_edge(
+    image: NDArray[np.uint8],
+    origin: NDArray[np.float64],
+    e: NDArray[np.float64],
+    n: NDArray[np.float64],
+    lateral: NDArray[np.float64],
+    guess: float,
+    reach: float,
+    *,
+    to_px: ToPx,
+    px_m: float,
+) -> float:
+    """Bright-to-dark edge along ``e`` near ``guess`` (m from ``origin``, within
+    ``reach``) on lines offset by ``lateral`` (m along ``n``): an end face of the hub or
+    the beam's tip."""
+    step = 0.25 * px_m
+    t = np.arange(guess - reach, guess + reach, step)
+    pts = np.empty((len(lateral), len(t), 2))
+    for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
+        pts[:, :, c] = (origin[c] + t[None, :] * e[c]) + lateral[:, None] * n[c]
+    v = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(lateral), len(t))
+    if not np.all(np.isfinite(v)):
+        raise FrameFailure("clamp or tip outside the image")
+    prof = v.mean(axis=0)
+    diff = -np.diff(prof)
+    centre, total = _step_moment(diff, int(np.argmax(diff)), round(3.0 / 0.25))
+    if not math.isfinite(centre) or total < 8.0:
+        raise FrameFailure("no clear end edge (clamp or tip)")
+    return float(t[0] + centre * step)
+
+
+def _step_moment(diff: NDArray[np.float64], peak: int, half: int) -> tuple[float, float]:
+    """First moment (position, step k at k + 0.5) and sum of the positive steps within
+    ``half`` of ``peak`` in one profile's steps: :func:`vision.sampling.edge_moment` for
+    a single line, without its batch machinery."""
+    lo, hi = max(peak - half, 0), min(peak + half, len(diff) - 1)
+    d = diff[lo : hi + 1]
+    d = np.where(d > 0, d, 0.0)
+    total = float(d.sum())
+    if total <= 0.0:
+        return math.nan, total
+    return float((d * (np.arange(lo, hi + 1) + 0.5)).sum()) / total, total
+
+
+def _along(p: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64]) -> NDArray:
+    """Residuals across a straight edge (N, 2) about its mean, ordered along it."""
+    c = p - p.mean(axis=0)
+    return (c @ n)[np.argsort(c @ e)]
