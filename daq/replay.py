@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from daq.clock import Clock, MonotonicClock
+from daq.errors import DaqInputError
 from daq.log.format import TOPIC_CAMERA_INFO, TOPIC_EVENTS, TOPIC_IMAGE, TOPIC_SAMPLES, TOPICS
 from daq.log.reader import iter_frames, read_run
 from daq.records import Event, Frame, SampleBlock
@@ -48,15 +49,15 @@ def replay_records(
     Frames are read lazily; samples and events are loaded first (they are small).
     """
     if speed is not None and not (np.isfinite(speed) and speed > 0):
-        raise ValueError(f"speed must be a positive number or None, got {speed!r}")
+        raise DaqInputError(f"speed must be a positive number or None, got {speed!r}")
     if max_block_samples < 1:
-        raise ValueError(f"max_block_samples must be >= 1, got {max_block_samples!r}")
+        raise DaqInputError(f"max_block_samples must be >= 1, got {max_block_samples!r}")
     want = (
         list(TOPICS) if topics is None else ([topics] if isinstance(topics, str) else list(topics))
     )
     unknown = sorted(set(want) - set(TOPICS))
     if unknown:
-        raise ValueError(f"topics: unknown topic {unknown[0]!r}; expected some of {TOPICS}")
+        raise DaqInputError(f"topics: unknown topic {unknown[0]!r}; expected some of {TOPICS}")
     run = read_run(
         path,
         topics=[t for t in want if t in (TOPIC_SAMPLES, TOPIC_EVENTS)] or [TOPIC_CAMERA_INFO],

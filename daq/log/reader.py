@@ -16,7 +16,7 @@ from mcap.reader import SeekingReader
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import CRCValidationError
 
-from daq.errors import LogError
+from daq.errors import DaqInputError, LogError
 from daq.imageinfo import image_size_px
 from daq.log.format import (
     PROFILE,
@@ -140,7 +140,7 @@ def _check_topics(topics: Iterable[str] | None) -> list[str]:
     topics = list(topics)
     unknown = sorted(set(topics) - set(TOPICS))
     if unknown:
-        raise ValueError(f"topics: unknown topic {unknown[0]!r}; expected some of {TOPICS}")
+        raise DaqInputError(f"topics: unknown topic {unknown[0]!r}; expected some of {TOPICS}")
     return topics
 
 
