@@ -124,7 +124,6 @@ def _default_rrd(log_path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from daq.errors import LogError
     from pipelines.review.viewer import open_viewer
 
     log_path = Path(args.log)
@@ -143,11 +142,8 @@ def run(args: argparse.Namespace) -> int:
         viewer = open_viewer(APP_ID, rrd_path=rrd, spawn=bool(args.spawn), connect_url=args.connect)
     except (ValueError, OSError, RuntimeError) as exc:
         raise BeambenchError(f"cannot open the Rerun destination: {exc}") from None
-    try:
-        with viewer:
-            summary = replay_log(log_path, viewer, speed=speed)
-    except LogError as exc:
-        raise BeambenchError(str(exc)) from None
+    with viewer:
+        summary = replay_log(log_path, viewer, speed=speed)
     where = str(rrd) if rrd is not None else (args.connect or "a spawned viewer")
     print(
         f"replayed {summary.samples} samples, {summary.frames} frames and {summary.events} "
