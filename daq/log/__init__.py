@@ -19,6 +19,7 @@ from daq.log.format import (
 )
 from daq.log.reader import ChannelStats, RunLog, iter_frames, read_run, scan_log
 from daq.log.recover import RecoverySummary, recover_log
+from daq.log.summary import ChannelSummary, LogSummary, summarize_log
 from daq.log.writer import LogWriter
 
 __all__ = [
@@ -31,7 +32,9 @@ __all__ = [
     "TOPIC_IMAGE",
     "TOPIC_SAMPLES",
     "ChannelStats",
+    "ChannelSummary",
     "LogError",
+    "LogSummary",
     "LogWriter",
     "RecoverySummary",
     "RunLog",
@@ -39,4 +42,5 @@ __all__ = [
     "read_run",
     "recover_log",
     "scan_log",
+    "summarize_log",
 ]
