@@ -1,4 +1,5 @@
-"""Pure calibration functions: bridge volts <-> strain, potentiometer volts <-> angle.
+"""The sensors' electrical conversions, pure functions: bridge volts <-> strain,
+potentiometer volts <-> angle.
 
 Sign convention (NI-DAQmx's): a bridge's output ratio ``Vr = Vout / Vexcitation`` is
 negative for tensile strain. Bridge configurations:

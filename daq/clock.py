@@ -1,4 +1,5 @@
-"""Clocks: the wall-clock source fakes pace themselves with (injectable for tests)."""
+"""Clocks: the wall-clock source fakes and replay pace themselves with (injectable for
+tests)."""
 
 from __future__ import annotations
 

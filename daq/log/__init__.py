@@ -1,7 +1,8 @@
-"""The run log (MCAP, format version 1): write, read, scan and recover.
+"""The run log (MCAP, format version 1): write, read, summarize and recover.
 
 ``shared/design.md`` "Run log (MCAP), version 1" is the contract. This module gathers
-the public names; the work is in ``log_writer``, ``log_reader`` and ``log_recover``.
+the public names; the work is in ``format`` (topics, schemas, encodings), ``writer``,
+``reader``, ``summary`` and ``recover``. ``mcap`` is imported in this sub-package only.
 """
 
 from __future__ import annotations
