@@ -16,6 +16,7 @@ import numpy as np
 from scipy import signal
 
 from daq.config import DaqConfig
+from daq.errors import DaqInputError
 from daq.records import RawBlock
 
 GROUP_DELAY_REFERENCE_HZ = 1.0  # the bench's motion is ~1 Hz: delay is corrected there
@@ -113,16 +114,16 @@ def design_antialias(config: DaqConfig, acquisition_rate_hz: float) -> AntiAlias
     """
     fs = float(acquisition_rate_hz)
     if not np.isfinite(fs) or fs <= 0:
-        raise ValueError(f"acquisition_rate_hz must be positive, got {acquisition_rate_hz!r}")
+        raise DaqInputError(f"acquisition_rate_hz must be positive, got {acquisition_rate_hz!r}")
     ratio = fs / config.output_rate_hz
     decimation = round(ratio)
     if decimation < 1 or abs(ratio - decimation) > 1e-6 * ratio:
-        raise ValueError(
+        raise DaqInputError(
             f"acquisition_rate_hz ({fs!r}) must be a whole multiple of output_rate_hz "
             f"({config.output_rate_hz!r})"
         )
     if config.stopband_hz >= 0.5 * fs:
-        raise ValueError(
+        raise DaqInputError(
             f"acquisition_rate_hz ({fs!r}) must be more than twice stopband_hz "
             f"({config.stopband_hz!r}): the filter has to act before the rate is reduced"
         )
@@ -182,7 +183,7 @@ class AntiAliasDecimator:
 
     def __init__(self, design: AntiAliasDesign, n_channels: int = 5) -> None:
         if n_channels < 1:
-            raise ValueError(f"n_channels must be >= 1, got {n_channels!r}")
+            raise DaqInputError(f"n_channels must be >= 1, got {n_channels!r}")
         self.design = design
         self.n_channels = n_channels
         self._zi: np.ndarray | None = None

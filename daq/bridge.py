@@ -1,4 +1,5 @@
-"""Pure calibration functions: bridge volts <-> strain, potentiometer volts <-> angle.
+"""The sensors' electrical conversions, pure functions: bridge volts <-> strain,
+potentiometer volts <-> angle.
 
 Sign convention (NI-DAQmx's): a bridge's output ratio ``Vr = Vout / Vexcitation`` is
 negative for tensile strain. Bridge configurations:
@@ -18,15 +19,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from daq.config import BRIDGE_TYPES, PotentiometerConfig
+from daq.errors import DaqInputError
 
 
 def _check_bridge(bridge: str, gauge_factor: float, excitation_v: float) -> None:
     if bridge not in BRIDGE_TYPES:
-        raise ValueError(f"bridge must be one of {BRIDGE_TYPES}, got {bridge!r}")
+        raise DaqInputError(f"bridge must be one of {BRIDGE_TYPES}, got {bridge!r}")
     if not gauge_factor > 0:
-        raise ValueError(f"gauge_factor must be positive, got {gauge_factor!r}")
+        raise DaqInputError(f"gauge_factor must be positive, got {gauge_factor!r}")
     if not excitation_v > 0:
-        raise ValueError(f"excitation_v must be positive, got {excitation_v!r}")
+        raise DaqInputError(f"excitation_v must be positive, got {excitation_v!r}")
 
 
 def bridge_volts_from_strain(

@@ -1,8 +1,10 @@
-"""Clocks: the wall-clock source fakes pace themselves with (injectable for tests)."""
+"""Clocks: the wall-clock source fakes and replay pace themselves with (injectable for
+tests)."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Protocol
 
 
@@ -23,6 +25,22 @@ class MonotonicClock:
     def sleep_s(self, seconds: float) -> None:
         if seconds > 0:
             time.sleep(seconds)
+
+
+class CallableClock:
+    """A clock made of two functions in seconds, ``monotonic() -> float`` and
+    ``sleep(seconds)``: ``time.monotonic`` and ``time.sleep``, or a caller's stand-ins."""
+
+    def __init__(self, monotonic: Callable[[], float], sleep: Callable[[float], None]) -> None:
+        self._monotonic = monotonic
+        self._sleep = sleep
+
+    def now_ns(self) -> int:
+        return round(self._monotonic() * 1e9)
+
+    def sleep_s(self, seconds: float) -> None:
+        if seconds > 0:
+            self._sleep(seconds)
 
 
 class ManualClock:

@@ -1,7 +1,7 @@
 """Configuration of the acquisition hardware: gauges, potentiometer and DAQ.
 
-Frozen dataclasses validated on construction; a bad value raises ``ValueError``
-whose message starts with the field name.
+Frozen dataclasses validated on construction; a bad value raises ``DaqInputError``
+(a ``ValueError``) whose message starts with the field name.
 """
 
 from __future__ import annotations
@@ -9,12 +9,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from daq.errors import DaqInputError
+
 BRIDGE_TYPES = ("quarter", "half", "full")
 
 
 def _positive(name: str, value: float) -> None:
     if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        raise DaqInputError(f"{name} must be a positive finite number, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -35,25 +37,25 @@ class GaugeConfig:
 
     def __post_init__(self) -> None:
         if len(self.positions_m) != 4:
-            raise ValueError(f"positions_m must list 4 gauges, got {len(self.positions_m)}")
+            raise DaqInputError(f"positions_m must list 4 gauges, got {len(self.positions_m)}")
         for x in self.positions_m:
             if not math.isfinite(x) or x < 0.0:
-                raise ValueError(f"positions_m must be non-negative distances, got {x!r}")
+                raise DaqInputError(f"positions_m must be non-negative distances, got {x!r}")
         if any(b <= a for a, b in zip(self.positions_m, self.positions_m[1:], strict=False)):
-            raise ValueError(
+            raise DaqInputError(
                 f"positions_m must increase from the clamp outwards, got {self.positions_m!r}"
             )
         _positive("resistance_ohm", self.resistance_ohm)
         if self.resistance_tolerance_ohm < 0.0:
-            raise ValueError(
+            raise DaqInputError(
                 f"resistance_tolerance_ohm must be >= 0, got {self.resistance_tolerance_ohm!r}"
             )
         _positive("gauge_factor", self.gauge_factor)
         _positive("excitation_v", self.excitation_v)
         if self.bridge not in BRIDGE_TYPES:
-            raise ValueError(f"bridge must be one of {BRIDGE_TYPES}, got {self.bridge!r}")
+            raise DaqInputError(f"bridge must be one of {BRIDGE_TYPES}, got {self.bridge!r}")
         if len(self.channels) != len(self.positions_m):
-            raise ValueError(
+            raise DaqInputError(
                 f"channels must name one DAQ channel per gauge ({len(self.positions_m)}), "
                 f"got {len(self.channels)}"
             )
@@ -77,11 +79,11 @@ class PotentiometerConfig:
         _positive("supply_v", self.supply_v)
         _positive("electrical_range_rad", self.electrical_range_rad)
         if self.electrical_range_rad > 2.0 * math.pi:
-            raise ValueError(
+            raise DaqInputError(
                 f"electrical_range_rad must be at most 2 pi, got {self.electrical_range_rad!r}"
             )
         if not math.isfinite(self.zero_angle_rad):
-            raise ValueError(f"zero_angle_rad must be finite, got {self.zero_angle_rad!r}")
+            raise DaqInputError(f"zero_angle_rad must be finite, got {self.zero_angle_rad!r}")
 
 
 @dataclass(frozen=True)
@@ -117,30 +119,30 @@ class DaqConfig:
         ):
             _positive(name, getattr(self, name))
         if self.passband_hz >= self.stopband_hz:
-            raise ValueError(
+            raise DaqInputError(
                 f"passband_hz ({self.passband_hz!r}) must be below "
                 f"stopband_hz ({self.stopband_hz!r})"
             )
         if self.stopband_hz > 0.5 * self.acquisition_rate_hz:
-            raise ValueError(
+            raise DaqInputError(
                 f"acquisition_rate_hz ({self.acquisition_rate_hz!r}) must be at least twice "
                 f"stopband_hz ({self.stopband_hz!r})"
             )
         ratio = self.acquisition_rate_hz / self.output_rate_hz
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-            raise ValueError(
+            raise DaqInputError(
                 f"acquisition_rate_hz ({self.acquisition_rate_hz!r}) must be a whole multiple "
                 f"of output_rate_hz ({self.output_rate_hz!r})"
             )
         if self.stopband_hz > 0.5 * self.output_rate_hz + 1e-9:
-            raise ValueError(
+            raise DaqInputError(
                 f"stopband_hz ({self.stopband_hz!r}) must not exceed the output Nyquist "
                 f"frequency ({0.5 * self.output_rate_hz!r} Hz)"
             )
         if not 8 <= self.adc_bits <= 32:
-            raise ValueError(f"adc_bits must be between 8 and 32, got {self.adc_bits!r}")
+            raise DaqInputError(f"adc_bits must be between 8 and 32, got {self.adc_bits!r}")
         if self.flush_interval_s > 1.0:
-            raise ValueError(
+            raise DaqInputError(
                 f"flush_interval_s must be at most 1 s (crash-safety contract), "
                 f"got {self.flush_interval_s!r}"
             )

@@ -7,6 +7,14 @@ class DaqError(Exception):
     """Base class of every error raised by ``daq``."""
 
 
+class DaqInputError(DaqError, ValueError):
+    """A setting or argument ``daq`` cannot use (message names the parameter, expected vs got).
+
+    Also a ``ValueError``, so callers that validate configuration by catching
+    ``ValueError`` (``pipelines.rig``) keep working.
+    """
+
+
 class DeviceError(DaqError):
     """A device failed or refused a setting (message names the device)."""
 

@@ -20,7 +20,7 @@ import numpy as np
 from daq.bridge import bridge_volts_from_strain, pot_volts_from_angle
 from daq.clock import Clock, MonotonicClock
 from daq.config import DaqConfig, GaugeConfig, PotentiometerConfig
-from daq.errors import DeviceError, DeviceTimeoutError
+from daq.errors import DaqInputError, DeviceError, DeviceTimeoutError
 from daq.records import N_GAUGES, Event, Frame, RawBlock, sample_times_ns
 
 log = logging.getLogger(__name__)
@@ -116,11 +116,13 @@ class FakeStrainDaq:
             raise TypeError("angle_fn must be callable: t_s (N,) -> angle (N,) rad")
         for name, v in (("strain_noise", strain_noise), ("pot_noise_v", pot_noise_v)):
             if not np.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+                raise DaqInputError(f"{name} must be a non-negative number, got {v!r}")
         if not bridge_range_v_per_v > 0:
-            raise ValueError(f"bridge_range_v_per_v must be positive, got {bridge_range_v_per_v}")
+            raise DaqInputError(
+                f"bridge_range_v_per_v must be positive, got {bridge_range_v_per_v}"
+            )
         if not buffer_s > 0:
-            raise ValueError(f"buffer_s must be positive, got {buffer_s!r}")
+            raise DaqInputError(f"buffer_s must be positive, got {buffer_s!r}")
         self.gauges = gauges
         self.potentiometer = potentiometer
         self.daq = daq
@@ -304,18 +306,20 @@ class FakeCamera:
         if not callable(render_fn):
             raise TypeError("render_fn must be callable: (t_start_s, exposure_s) -> bytes")
         if not isinstance(render_workers, int) or render_workers < 0:
-            raise ValueError(f"render_workers must be an integer >= 0, got {render_workers!r}")
+            raise DaqInputError(f"render_workers must be an integer >= 0, got {render_workers!r}")
         if encoding not in ("jpeg", "png"):
-            raise ValueError(f"encoding must be 'jpeg' or 'png', got {encoding!r}")
+            raise DaqInputError(f"encoding must be 'jpeg' or 'png', got {encoding!r}")
         if not frame_rate_hz > 0:
-            raise ValueError(f"frame_rate_hz must be positive, got {frame_rate_hz!r}")
+            raise DaqInputError(f"frame_rate_hz must be positive, got {frame_rate_hz!r}")
         if not 0 < exposure_s < 1.0 / frame_rate_hz:
-            raise ValueError(f"exposure_s must be within (0, frame period), got {exposure_s!r}")
+            raise DaqInputError(f"exposure_s must be within (0, frame period), got {exposure_s!r}")
         for name, v in (("latency_s", latency_s), ("clock_jitter_s", clock_jitter_s)):
             if not np.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+                raise DaqInputError(f"{name} must be a non-negative number, got {v!r}")
         if width_px <= 0 or height_px <= 0:
-            raise ValueError(f"width_px and height_px must be positive, got {width_px}x{height_px}")
+            raise DaqInputError(
+                f"width_px and height_px must be positive, got {width_px}x{height_px}"
+            )
         self._render_fn = render_fn
         self.width_px = int(width_px)
         self.height_px = int(height_px)

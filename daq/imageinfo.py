@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import struct
 
+from daq.errors import DaqInputError
+
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _SOF_MARKERS = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
 
@@ -18,11 +20,12 @@ def image_encoding(data: bytes) -> str | None:
 
 
 def image_size_px(data: bytes) -> tuple[int, int]:
-    """``(width_px, height_px)`` of a JPEG or PNG; ``ValueError`` if it is neither."""
+    """``(width_px, height_px)`` of a JPEG or PNG; ``DaqInputError`` (a ``ValueError``)
+    if it is neither."""
     kind = image_encoding(data)
     if kind == "png":
         if len(data) < 24 or data[12:16] != b"IHDR":
-            raise ValueError("data: PNG without an IHDR chunk")
+            raise DaqInputError("data: PNG without an IHDR chunk")
         width, height = struct.unpack(">II", data[16:24])
         return int(width), int(height)
     if kind == "jpeg":
@@ -30,7 +33,7 @@ def image_size_px(data: bytes) -> tuple[int, int]:
         n = len(data)
         while i + 4 <= n:
             if data[i] != 0xFF:
-                raise ValueError(f"data: corrupt JPEG marker at byte {i}")
+                raise DaqInputError(f"data: corrupt JPEG marker at byte {i}")
             marker = data[i + 1]
             if marker == 0xFF:  # fill byte
                 i += 1
@@ -45,5 +48,5 @@ def image_size_px(data: bytes) -> tuple[int, int]:
                 height, width = struct.unpack(">HH", data[i + 5 : i + 9])
                 return int(width), int(height)
             i += 2 + length
-        raise ValueError("data: JPEG without a frame header (SOF)")
-    raise ValueError("data: not a JPEG or PNG image")
+        raise DaqInputError("data: JPEG without a frame header (SOF)")
+    raise DaqInputError("data: not a JPEG or PNG image")

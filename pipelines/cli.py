@@ -1,8 +1,9 @@
 """The ``beambench`` command line: one console script, one module per subcommand.
 
 Each module in ``pipelines.commands`` provides ``HELP`` (one line), ``add_arguments``
-and ``run(args) -> int``. Known errors (``BeambenchError``) become one ``error: ...``
-line on stderr and exit status 2; a traceback is a bug.
+and ``run(args) -> int``. Known errors (``BeambenchError``, and the root of each
+package's tree: ``DaqError``) become one ``error: ...`` line on stderr and exit status 2;
+a traceback is a bug.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from daq.errors import DaqError
 from pipelines import __version__
 from pipelines.blas_threads import limit_blas_threads
 from pipelines.errors import BeambenchError
@@ -71,6 +73,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except BeambenchError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except DaqError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

@@ -20,7 +20,7 @@ import numpy as np
 
 from daq.bridge import bridge_volts_from_strain
 from daq.config import DaqConfig, GaugeConfig, PotentiometerConfig
-from daq.errors import DeviceError, DeviceTimeoutError, DriverUnavailableError
+from daq.errors import DaqInputError, DeviceError, DeviceTimeoutError, DriverUnavailableError
 from daq.records import Event, RawBlock, sample_times_ns
 
 log = logging.getLogger(__name__)
@@ -63,7 +63,7 @@ def channel_settings(
     named by string: ``strain_config`` is a ``StrainGageBridgeType`` name).
     """
     if not strain_range > 0:
-        raise ValueError(f"strain_range must be positive, got {strain_range!r}")
+        raise DaqInputError(f"strain_range must be positive, got {strain_range!r}")
     settings: list[dict[str, Any]] = [
         {
             "kind": "voltage",

@@ -22,7 +22,7 @@ from types import TracebackType
 from typing import Any
 
 from daq.drivers.exif import exif_datetime_original
-from daq.errors import DeviceError
+from daq.errors import DaqInputError, DeviceError
 from daq.imageinfo import image_encoding, image_size_px
 from daq.records import Frame
 
@@ -67,7 +67,7 @@ class VideoFileCamera(_Base):
         self, path: str | os.PathLike[str], *, encoding: str = "jpeg", jpeg_quality: int = 90
     ) -> None:
         if encoding not in ("jpeg", "png"):
-            raise ValueError(f"encoding must be 'jpeg' or 'png', got {encoding!r}")
+            raise DaqInputError(f"encoding must be 'jpeg' or 'png', got {encoding!r}")
         self.path = Path(path)
         self.encoding = encoding
         self.jpeg_quality = jpeg_quality
@@ -169,7 +169,7 @@ class StillFolderCamera(_Base):
             raise DeviceError(f"{path}: not a JPEG or PNG image")
         try:
             w, h = image_size_px(data)
-        except ValueError as exc:
+        except DaqInputError as exc:
             raise DeviceError(f"{path}: {exc}") from None
         t0 = self._files[0][0]
         frame = Frame(round((t - t0) * 1e9), self._k, data, encoding, w, h)

@@ -1,7 +1,8 @@
-"""The run log (MCAP, format version 1): write, read, scan and recover.
+"""The run log (MCAP, format version 1): write, read, summarize and recover.
 
 ``shared/design.md`` "Run log (MCAP), version 1" is the contract. This module gathers
-the public names; the work is in ``log_writer``, ``log_reader`` and ``log_recover``.
+the public names; the work is in ``format`` (topics, schemas, encodings), ``writer``,
+``reader``, ``summary`` and ``recover``. ``mcap`` is imported in this sub-package only.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from daq.log.format import (
 )
 from daq.log.reader import ChannelStats, RunLog, iter_frames, read_run, scan_log
 from daq.log.recover import RecoverySummary, recover_log
+from daq.log.summary import ChannelSummary, LogSummary, summarize_log
 from daq.log.writer import LogWriter
 
 __all__ = [
@@ -31,7 +33,9 @@ __all__ = [
     "TOPIC_IMAGE",
     "TOPIC_SAMPLES",
     "ChannelStats",
+    "ChannelSummary",
     "LogError",
+    "LogSummary",
     "LogWriter",
     "RecoverySummary",
     "RunLog",
@@ -39,4 +43,5 @@ __all__ = [
     "read_run",
     "recover_log",
     "scan_log",
+    "summarize_log",
 ]

@@ -28,6 +28,7 @@ from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap_protobuf.schema import build_file_descriptor_set
 
+from daq.errors import DaqInputError
 from daq.records import Event
 
 PROFILE = "beambench"
@@ -164,10 +165,10 @@ def check_camera_info(info: dict[str, Any]) -> dict[str, Any]:
     """Validate the ``camera_info`` dict (foxglove.CameraCalibration content)."""
     for key in ("width", "height", "K"):
         if key not in info:
-            raise ValueError(f"camera_info must have '{key}', got keys {sorted(info)}")
+            raise DaqInputError(f"camera_info must have '{key}', got keys {sorted(info)}")
     k = [float(x) for x in info["K"]]
     if len(k) != 9:
-        raise ValueError(f"camera_info['K'] must have 9 numbers, got {len(k)}")
+        raise DaqInputError(f"camera_info['K'] must have 9 numbers, got {len(k)}")
     return {
         "width": int(info["width"]),
         "height": int(info["height"]),
@@ -212,7 +213,7 @@ def encode_metadata(values: dict[str, Any]) -> dict[str, str]:
     json_keys = []
     for key, value in values.items():
         if not isinstance(key, str) or key == "_json_keys":
-            raise ValueError(f"metadata keys must be strings other than '_json_keys': {key!r}")
+            raise DaqInputError(f"metadata keys must be strings other than '_json_keys': {key!r}")
         if isinstance(value, str):
             out[key] = value
         else:

@@ -11,12 +11,13 @@ from typing import IO, Any
 
 import numpy as np
 import zstandard
+from google.protobuf.message import DecodeError
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import CRCValidationError
 
-from daq.errors import LogError
+from daq.errors import DaqInputError, LogError
 from daq.imageinfo import image_size_px
 from daq.log.format import (
     PROFILE,
@@ -33,17 +34,26 @@ from daq.log.format import (
 )
 from daq.records import Event, Frame, SampleBlock
 
-# what a damaged file can raise from inside the mcap reader
-READ_ERRORS: tuple[type[BaseException], ...] = (
+# what damaged bytes can raise when mcap and the message decoders parse them: lz4
+# reports a bad chunk as RuntimeError; a garbage length gives OverflowError, or
+# MemoryError when a chunk claims a huge uncompressed size
+DAMAGED_DATA_ERRORS: tuple[type[BaseException], ...] = (
     McapError,
     CRCValidationError,
     struct.error,
     zstandard.ZstdError,
+    DecodeError,
     EOFError,
     KeyError,
     ValueError,
     UnicodeDecodeError,
+    OverflowError,
+    RuntimeError,
+    MemoryError,
 )
+# reading through the index also seeks to offsets stored in the file: a garbage one
+# fails the seek with OSError
+READ_ERRORS: tuple[type[BaseException], ...] = (*DAMAGED_DATA_ERRORS, OSError)
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,7 +150,7 @@ def _check_topics(topics: Iterable[str] | None) -> list[str]:
     topics = list(topics)
     unknown = sorted(set(topics) - set(TOPICS))
     if unknown:
-        raise ValueError(f"topics: unknown topic {unknown[0]!r}; expected some of {TOPICS}")
+        raise DaqInputError(f"topics: unknown topic {unknown[0]!r}; expected some of {TOPICS}")
     return topics
 
 
@@ -184,6 +194,10 @@ def read_run(
                 "capture, or cut off before its first flush)",
                 suggest_recover=False,
             )
+        try:
+            run_info = decode_metadata(meta["run"])
+        except READ_ERRORS as exc:
+            raise LogError(str(p), f"corrupt metadata ({exc})") from None
         image_ids = [c.id for c in summary.channels.values() if c.topic == TOPIC_IMAGE]
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
         frame_count = sum(counts.get(i, 0) for i in image_ids)
@@ -211,7 +225,7 @@ def read_run(
                         f"bad {channel.topic} message at log time {message.log_time} "
                         f"({type(exc).__name__}: {exc})",
                     ) from None
-    order = np.argsort(np.asarray(times, dtype=np.int64), kind="stable")
+    order = np.argsort(_times_ns(p, TOPIC_SAMPLES, times), kind="stable")
     if len(order) and np.any(np.diff(order) != 1):
         times = [times[i] for i in order]
         rows = [rows[i] for i in order]
@@ -223,11 +237,18 @@ def read_run(
         samples=samples,
         events=events,
         rig_json=meta["rig"].get("json", ""),
-        run_info=decode_metadata(meta["run"]),
+        run_info=run_info,
         camera_info=camera_info,
         frame_count=int(frame_count),
         sample_sequences=np.asarray(seqs, dtype=np.int64),
     )
+
+
+def _times_ns(path: Path, topic: str, times: list[int]) -> np.ndarray:
+    try:
+        return np.asarray(times, dtype=np.int64)
+    except OverflowError:  # MCAP times are unsigned 64-bit: a damaged one can exceed int64
+        raise LogError(str(path), f"corrupt log data ({topic} time beyond 2**63 ns)") from None
 
 
 def _samples_block(times: list[int], rows: list[list[Any]], seqs: list[int]) -> SampleBlock:
@@ -289,8 +310,11 @@ def scan_log(path: str | os.PathLike[str]) -> tuple[dict[str, ChannelStats], dic
             t, s = per[channel.id]
             t.append(message.log_time)
             s.append(message.sequence)
-        header = reader.get_header()
-        metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+        try:
+            header = reader.get_header()
+            metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+        except READ_ERRORS as exc:
+            raise LogError(str(p), f"corrupt metadata ({exc})") from None
     stats = {}
     for cid, channel in summary.channels.items():
         schema = summary.schemas.get(channel.schema_id)
@@ -299,7 +323,7 @@ def scan_log(path: str | os.PathLike[str]) -> tuple[dict[str, ChannelStats], dic
             channel.topic,
             schema.name if schema else "",
             channel.message_encoding,
-            np.asarray(t, dtype=np.int64),
+            _times_ns(p, channel.topic, t),
             np.asarray(s, dtype=np.int64),
         )
     info = {

@@ -4,24 +4,24 @@ from __future__ import annotations
 
 import logging
 import os
-import struct
 import tempfile
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import zstandard
-from mcap.exceptions import EndOfFile, McapError
+from mcap.exceptions import EndOfFile
 from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from daq.errors import LogError
 from daq.log.format import PROFILE
+from daq.log.reader import DAMAGED_DATA_ERRORS
 
 log = logging.getLogger(__name__)
 
-_BAD_CHUNK = (McapError, CRCValidationError, struct.error, zstandard.ZstdError, ValueError)
+# a truncated record, or damage past which the stream cannot be followed
+_END_OF_DATA: tuple[type[BaseException], ...] = (EndOfFile, *DAMAGED_DATA_ERRORS)
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,7 @@ def recover_log(
                     chunks += 1
                     try:
                         inner = breakup_chunk(record, validate_crc=True)
-                    except _BAD_CHUNK as exc:
+                    except DAMAGED_DATA_ERRORS as exc:
                         bad_chunks += 1
                         log.warning("%s: chunk %d unreadable (%s): skipped", src, chunks, exc)
                         continue
@@ -114,7 +114,7 @@ def recover_log(
                 elif isinstance(record, DataEnd | Footer):
                     complete = True
                     break
-        except (EndOfFile, *_BAD_CHUNK) as exc:
+        except _END_OF_DATA as exc:
             if header is None:
                 raise LogError(
                     str(src), f"not an MCAP file ({exc})", suggest_recover=False

@@ -20,6 +20,7 @@ from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap.writer import CompressionType, Writer
 
+from daq.errors import DaqInputError
 from daq.log.format import (
     FORMAT_VERSION,
     PROFILE,
@@ -83,19 +84,19 @@ class LogWriter:
         compression: str = "zstd",
     ) -> None:
         if not 0 < flush_interval_s <= 1.0:
-            raise ValueError(f"flush_interval_s must be in (0, 1] s, got {flush_interval_s!r}")
+            raise DaqInputError(f"flush_interval_s must be in (0, 1] s, got {flush_interval_s!r}")
         try:
             rig = json.loads(rig_json)
         except (TypeError, json.JSONDecodeError) as exc:
-            raise ValueError(f"rig_json must be a JSON object: {exc}") from None
+            raise DaqInputError(f"rig_json must be a JSON object: {exc}") from None
         if not isinstance(rig, dict):
-            raise ValueError("rig_json must be a JSON object")
+            raise DaqInputError("rig_json must be a JSON object")
         if not isinstance(run_info, dict):
             raise TypeError(f"run_info must be a dict, got {type(run_info).__name__}")
         cam = check_camera_info(camera_info) if camera_info is not None else None
         modes = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": None}
         if compression not in modes:
-            raise ValueError(f"compression must be one of {sorted(modes)}, got {compression!r}")
+            raise DaqInputError(f"compression must be one of {sorted(modes)}, got {compression!r}")
         self.path = Path(path)
         self.flush_interval_s = float(flush_interval_s)
         self._file = open(self.path, "xb")

@@ -16,7 +16,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from daq.log import LogError, recover_log
+    from daq.log import recover_log
 
     out = Path(args.out)
     if out.exists():
@@ -25,8 +25,6 @@ def run(args: argparse.Namespace) -> int:
         raise BeambenchError(f"{out}: the folder {out.parent} does not exist")
     try:
         s = recover_log(args.log, out)
-    except LogError as exc:
-        raise BeambenchError(str(exc).replace(" (try beambench recover)", "")) from None
     except FileExistsError as exc:
         raise BeambenchError(str(exc)) from None
     except OSError as exc:

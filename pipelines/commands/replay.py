@@ -10,12 +10,10 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
-
-import numpy as np
 
 from pipelines.commands._viewer_args import add_viewer_arguments
 from pipelines.errors import BeambenchError
@@ -23,15 +21,11 @@ from pipelines.errors import BeambenchError
 if TYPE_CHECKING:
     # rerun, xarray and mcap take seconds to import: only when replay runs, not for
     # every ``beambench`` invocation (the CLI imports every command module).
-    from daq.log import RunLog
-    from daq.records import Frame
-    from pipelines.progress import Progress
     from pipelines.review.viewer import RunViewer
 
 HELP = "stream a raw run log to Rerun without processing"
 
 APP_ID = "beambench"
-TICK_S = 0.1  # run time sent per step when pacing
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -81,7 +75,7 @@ def replay_log(
     monotonic: Callable[[], float] = time.monotonic,
     progress: bool | None = None,
 ) -> ReplaySummary:
-    """Stream a run log into ``viewer``.
+    """Stream a run log into ``viewer``: the records of ``daq.replay``, in log-time order.
 
     Parameters
     ----------
@@ -96,80 +90,33 @@ def replay_log(
     daq.errors.LogError
         The log is missing, truncated or not a beambench log.
     """
-    from daq.log import iter_frames, read_run
+    from daq.clock import CallableClock
+    from daq.records import Frame, SampleBlock
+    from daq.replay import BLOCK_SAMPLES, LogReplay
     from pipelines.progress import Progress
 
-    run = read_run(log_path)
+    # unpaced, a sample block runs from one frame or event to the next (few chunks in the
+    # recording); paced, 0.1 s blocks keep the view moving
+    replay = LogReplay(log_path, max_block_samples=None if speed is None else BLOCK_SAMPLES)
+    run = replay.run
     s = run.samples
     t0_ns = int(s.t_ns[0]) if len(s) else min((e.t_ns for e in run.events), default=0)
-    t_s = (s.t_ns - t0_ns).astype(np.float64) * 1e-9
-    ev_t_s = np.array([(e.t_ns - t0_ns) * 1e-9 for e in run.events], dtype=np.float64)
-    frames = iter_frames(log_path)
     n_frames = 0
-    end_s = float(max(t_s[-1] if t_s.size else 0.0, ev_t_s.max(initial=0.0)))
     with Progress("replay", total=run.frame_count or None, enabled=progress) as bar:
-        if speed is None:
-            viewer.log_samples(t_s, s.rocker_angle_rad, s.strain)
-            viewer.log_events(run.events, t0_ns=t0_ns)
-            for frame in frames:
-                _log_frame(viewer, frame, t0_ns)
+        for record in replay.records(speed=speed, clock=CallableClock(monotonic, sleep)):
+            if isinstance(record, SampleBlock):
+                t_s = (record.t_ns - t0_ns) * 1e-9
+                viewer.log_samples(t_s, record.rocker_angle_rad, record.strain)
+            elif isinstance(record, Frame):
+                t = (record.t_ns - t0_ns) * 1e-9
+                viewer.log_frame(t, record.data, record.encoding, None, frame_index=record.sequence)
                 n_frames += 1
                 bar.update(1)
-        else:
-            n_frames = _paced(viewer, run, t_s, ev_t_s, frames, t0_ns, speed, sleep, monotonic, bar)
+            else:
+                viewer.log_events([record], t0_ns=t0_ns)
+    ends_ns = [*s.t_ns[-1:].tolist(), *(e.t_ns for e in run.events)]
+    end_s = max([0.0, *((t - t0_ns) * 1e-9 for t in ends_ns)])
     return ReplaySummary(len(s), n_frames, len(run.events), end_s)
-
-
-def _log_frame(viewer: RunViewer, frame: Frame, t0_ns: int) -> float:
-    t = (frame.t_ns - t0_ns) * 1e-9
-    viewer.log_frame(t, frame.data, frame.encoding, None, frame_index=frame.sequence)
-    return t
-
-
-def _paced(
-    viewer: RunViewer,
-    run: RunLog,
-    t_s: np.ndarray,
-    ev_t_s: np.ndarray,
-    frames: Iterator[Frame],
-    t0_ns: int,
-    speed: float,
-    sleep: Callable[[float], None],
-    monotonic: Callable[[], float],
-    bar: Progress,
-) -> int:
-    """Send the log in steps of TICK_S of run time, each when the wall clock reaches it."""
-    s = run.samples
-    events = run.events
-    pending: Frame | None = next(frames, None)
-    n_frames = 0
-    start_wall = monotonic()
-    begin = min(0.0, float(t_s[0]) if t_s.size else 0.0)
-    step = 0
-    while True:
-        hi = begin + (step + 1) * TICK_S
-        lo_i, hi_i = np.searchsorted(t_s, [begin + step * TICK_S, hi])
-        if hi_i > lo_i:
-            viewer.log_samples(t_s[lo_i:hi_i], s.rocker_angle_rad[lo_i:hi_i], s.strain[lo_i:hi_i])
-        due = [
-            e
-            for e, te in zip(events, ev_t_s, strict=True)
-            if begin + step * TICK_S <= te < hi or (step == 0 and te < begin)
-        ]
-        if due:
-            viewer.log_events(due, t0_ns=t0_ns)
-        while pending is not None and (pending.t_ns - t0_ns) * 1e-9 < hi:
-            _log_frame(viewer, pending, t0_ns)
-            n_frames += 1
-            bar.update(1)
-            pending = next(frames, None)
-        done = hi_i >= t_s.size and pending is None and not (ev_t_s >= hi).any()
-        if done:
-            return n_frames
-        step += 1
-        wait = start_wall + (hi - begin) / speed - monotonic()
-        if wait > 0:
-            sleep(wait)
 
 
 def _default_rrd(log_path: Path) -> Path:
@@ -177,7 +124,6 @@ def _default_rrd(log_path: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from daq.errors import LogError
     from pipelines.review.viewer import open_viewer
 
     log_path = Path(args.log)
@@ -196,11 +142,8 @@ def run(args: argparse.Namespace) -> int:
         viewer = open_viewer(APP_ID, rrd_path=rrd, spawn=bool(args.spawn), connect_url=args.connect)
     except (ValueError, OSError, RuntimeError) as exc:
         raise BeambenchError(f"cannot open the Rerun destination: {exc}") from None
-    try:
-        with viewer:
-            summary = replay_log(log_path, viewer, speed=speed)
-    except LogError as exc:
-        raise BeambenchError(str(exc)) from None
+    with viewer:
+        summary = replay_log(log_path, viewer, speed=speed)
     where = str(rrd) if rrd is not None else (args.connect or "a spawned viewer")
     print(
         f"replayed {summary.samples} samples, {summary.frames} frames and {summary.events} "

@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from daq.clock import ManualClock
+from daq.clock import CallableClock, ManualClock
+from daq.errors import DaqInputError
 from daq.log import LogWriter, read_run
 from daq.records import Event, Frame, SampleBlock
-from daq.replay import replay_records
+from daq.replay import LogReplay, replay_records
 
 JPEG = bytes.fromhex(
     "ffd8ffc0000b080030004003011100ffd9"  # SOI, SOF0 48 x 64, EOI: enough for the header
@@ -109,3 +111,65 @@ def test_pacing_follows_the_log_clock(tmp_path: Path) -> None:
     assert clock.now_ns() == 0
     with pytest.raises(ValueError, match="speed"):
         list(replay_records(path, speed=0.0))
+
+
+def _time_ns(record: SampleBlock | Frame | Event) -> int:
+    return int(record.t_ns[-1]) if isinstance(record, SampleBlock) else record.t_ns
+
+
+def test_each_paced_record_comes_when_the_clock_reaches_its_log_time(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    _log(path)
+    clock = ManualClock(start_ns=5_000)
+    records = LogReplay(path).records(speed=2.0, clock=clock)
+    first = next(records)
+    for record in records:
+        due_ns = 5_000 + (_time_ns(record) - _time_ns(first)) / 2.0
+        assert abs(clock.now_ns() - due_ns) <= 1  # ns rounding of each sleep
+    with pytest.raises(DaqInputError, match="speed"):
+        next(LogReplay(path).records(speed=float("nan")))
+
+
+def test_a_callable_clock_paces_with_the_callers_sleep(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    _, _, events = _log(path)
+    now = [100.0]
+    sleeps: list[float] = []
+
+    def sleep(s: float) -> None:
+        sleeps.append(s)
+        now[0] += s
+
+    list(replay_records(path, speed=4.0, clock=CallableClock(lambda: now[0], sleep)))
+    span_s = (events[-1].t_ns - events[0].t_ns) * 1e-9
+    assert sum(sleeps) == pytest.approx(span_s / 4.0, abs=1e-6)
+    assert len(sleeps) > 20 and min(sleeps) > 0  # never asked to sleep for nothing
+
+
+def test_the_opened_log_is_read_once_and_replays_the_same_records(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    samples, frames, events = _log(path)
+    replay = LogReplay(path)
+    assert replay.run.frame_count == len(frames) and replay.run.events == events
+    assert len(replay.run.samples) == len(samples)
+    once = list(replay.records())
+    assert once == list(replay.records()) == list(replay_records(path))
+    with pytest.raises(DaqInputError, match="max_block_samples"):
+        LogReplay(path, max_block_samples=0)
+
+
+def test_unlimited_blocks_end_only_at_gaps_frames_and_events(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    _, frames, events = _log(path)
+    alone = list(replay_records(path, topics="/daq/samples", max_block_samples=None))
+    assert [len(b) for b in alone if isinstance(b, SampleBlock)] == [200, 200]  # the gap
+    records = list(replay_records(path, max_block_samples=None))
+    blocks = [r for r in records if isinstance(r, SampleBlock)]
+    assert SampleBlock.concatenate(blocks) == SampleBlock.concatenate(alone)
+    for a, b in itertools.pairwise(blocks):
+        gap = b.first_sequence != a.first_sequence + len(a)
+        between = [r for r in [*frames, *events] if a.t_ns[-1] <= r.t_ns < b.t_ns[0]]
+        assert gap or between, (a.first_sequence, b.first_sequence)
+    assert [r for r in records if not isinstance(r, SampleBlock)] == sorted(
+        [*frames, *events], key=lambda r: (r.t_ns, isinstance(r, Frame))
+    )

@@ -18,6 +18,7 @@ from daq.log import (
     iter_frames,
     read_run,
     recover_log,
+    scan_log,
 )
 from daq.records import Event, Frame, SampleBlock
 
@@ -203,6 +204,47 @@ def test_damaged_files_give_a_clear_error(tmp_path: Path) -> None:
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(bytes(flipped))
     with pytest.raises(LogError, match=r"bad\.mcap"):
+        read_run(bad)
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_any_damage_is_a_log_error(tmp_path: Path, compression: str) -> None:
+    """Cuts and flipped bytes anywhere: reading raises LogError and nothing else (mcap,
+    lz4, protobuf, struct, overflow...), and recovery salvages or raises LogError."""
+    rng = np.random.default_rng(6)
+    path = tmp_path / "run.mcap"
+    frames = [Frame(33_000_000 * k, k, _jpeg(k), "jpeg", 64, 48) for k in range(10)]
+    events = [Event(0, "info", "start", ""), Event(500_000_000, "warning", "dropped", "x")]
+    _write(
+        path,
+        [_samples(0, 200, rng), _samples(200, 200, rng)],
+        frames,
+        events,
+        compression=compression,
+    )
+    data = path.read_bytes()
+    damaged = [data[:cut] for cut in range(0, len(data), len(data) // 40)]
+    for _ in range(80):
+        b = bytearray(data)
+        for i in rng.integers(0, len(b), size=rng.integers(1, 4)):
+            b[i] = int(rng.integers(0, 256))
+        damaged.append(bytes(b))
+    bad = tmp_path / "bad.mcap"
+    for k, content in enumerate(damaged):
+        bad.write_bytes(content)
+        for read in (read_run, lambda p: list(iter_frames(p)), scan_log):
+            try:
+                read(bad)
+            except LogError as exc:
+                assert str(exc).startswith(f"{bad}: ")
+        try:
+            recover_log(bad, tmp_path / f"fixed{k}.mcap")
+        except LogError:
+            pass
+    text = data.replace(b'{"daq": 2000.0}', b'{"daq": 2000.0!')  # no CRC on metadata
+    assert text != data
+    bad.write_bytes(text)
+    with pytest.raises(LogError, match="corrupt metadata"):
         read_run(bad)
 
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from daq.fakes import CameraFaults, DaqFaults, FakeCamera, FakeStrainDaq
+from daq.log import summarize_log
 from pipelines.acquire.capture import capture_run
 from pipelines.cli import main
-from pipelines.commands.info import summarize
 from pipelines.rig import load_rig
 
 RIG = load_rig()
@@ -44,23 +44,23 @@ def test_info_reports_counts_rates_and_gaps(
 ) -> None:
     out = tmp_path / "run.mcap"
     _capture(out, DaqFaults(drop_blocks=(4,)), CameraFaults(drop_frames=(10, 11)))
-    s = summarize(str(out))
-    ch = {c["topic"]: c for c in s["channels"]}
+    s = summarize_log(str(out))
+    ch = {c.topic: c for c in s.channels}
     samples = ch["/daq/samples"]
     # a dropped 0.1 s block costs its 40 samples and the filter's 45 ms (18 samples) of
     # settling after the restart; the run's start loses the same 18
     lost = 40 + 18
-    assert samples["count"] == 800 - 18 - lost
-    assert samples["rate_hz"] == pytest.approx(
-        400.0 * (samples["count"] - 1) / (samples["count"] - 1 + lost), rel=1e-3
+    assert samples.count == 800 - 18 - lost
+    assert samples.rate_hz == pytest.approx(
+        400.0 * (samples.count - 1) / (samples.count - 1 + lost), rel=1e-3
     )
-    assert (samples["sequence_gaps"], samples["missing"], samples["time_gaps"]) == (1, lost, 1)
-    assert samples["largest_gap_s"] == pytest.approx((lost + 1) / 400.0)
+    assert (samples.sequence_gaps, samples.missing, samples.time_gaps) == (1, lost, 1)
+    assert samples.largest_gap_s == pytest.approx((lost + 1) / 400.0)
     image = ch["/camera/image"]
-    assert (image["count"], image["sequence_gaps"], image["missing"]) == (28, 1, 2)
-    assert image["schema"] == "foxglove.CompressedImage"
-    assert s["problems"] == {"dropped_samples": 1, "dropped_frames": 1}
-    assert s["duration_s"] == pytest.approx(2.0, abs=0.01)
+    assert (image.count, image.sequence_gaps, image.missing) == (28, 1, 2)
+    assert image.schema == "foxglove.CompressedImage"
+    assert s.problems == {"dropped_samples": 1, "dropped_frames": 1}
+    assert s.duration_s == pytest.approx(2.0, abs=0.01)
     assert main(["info", str(out)]) == 0
     text = capsys.readouterr().out
     assert "/daq/samples" in text and "beambench.DaqSample" in text
@@ -72,7 +72,7 @@ def test_info_on_a_clean_run_and_on_a_broken_file(
 ) -> None:
     out = tmp_path / "run.mcap"
     _capture(out)
-    assert summarize(str(out))["problems"] == {}
+    assert summarize_log(str(out)).problems == {}
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(out.read_bytes()[:5000])
     assert main(["info", str(cut)]) == 2
