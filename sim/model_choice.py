@@ -53,6 +53,7 @@ from numpy.typing import ArrayLike
 
 from sim.beam import BeamProperties
 from sim.drives import Drive
+from sim.errors import SimInputError
 from sim.models.fe import simulate_fe
 from sim.models.modal import simulate_modal
 from sim.result import SimResult
@@ -136,7 +137,7 @@ def simulate_auto(
     """
     t_tol = float(tol)
     if not math.isfinite(t_tol) or not 0.0 < t_tol < 0.5:
-        raise ValueError(f"tol must be in (0, 0.5), got {tol!r}")
+        raise SimInputError("tol", f"must be in (0, 0.5), got {tol!r}")
     common: dict[str, Any] = {
         "a0_per_s": a0_per_s,
         "a1_s": a1_s,

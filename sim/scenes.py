@@ -1,9 +1,9 @@
 """The simulator's scenes: what ``beambench sim SCENE`` runs, as plain functions.
 
 Each scene takes the bench's configuration dataclasses (``sim.config``) and returns a
-:class:`SceneRun`: the :class:`SimResult` and the scene's extra numbers. The finite-element
-and automatic models live in ``sim.models.fe`` and ``sim.model_choice``; when one of them is
-missing the scene raises :class:`ModelNotAvailable` rather than substituting another model.
+:class:`SceneRun`: the :class:`SimResult` and the scene's extra numbers. A scene that does
+not run the requested model raises :class:`sim.errors.ModelNotAvailable` rather than
+substituting another model.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from sim.damping import (
     modal_damping_ratio,
 )
 from sim.drives import Drive, FixedDrive, FourBarDrive, SinusoidDrive, SpinUpDrive
+from sim.errors import ModelNotAvailable, SimInputError
 from sim.falling_body import STANDARD_GRAVITY_M_S2, FallingBody
 from sim.four_bar import (
     PAPER_CRANK_AT_MAX_RAD,
@@ -44,10 +45,6 @@ from sim.statics import solve_static_elastica, solve_static_modal
 FloatArray = NDArray[np.float64]
 
 MODELS = ("auto", "rigid", "modal", "fe")
-
-
-class ModelNotAvailable(RuntimeError):
-    """The requested model is not (yet) part of this installation or this scene."""
 
 
 @dataclass(frozen=True)
@@ -97,16 +94,16 @@ def _dynamic(
 
         kw = {} if rtol is None else {"tol": rtol}
         return simulate_auto(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
-    raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+    raise SimInputError("model", f"must be one of {', '.join(MODELS)}, got {model!r}")
 
 
 def _times(duration_s: float, rate_hz: float) -> FloatArray:
     for name, v in (("duration_s", duration_s), ("output_rate_hz", rate_hz)):
         if not math.isfinite(v) or v <= 0.0:
-            raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+            raise SimInputError(name, f"must be a positive finite number, got {v!r}")
     n = round(duration_s * rate_hz)
     if n < 1:
-        raise ValueError(f"duration_s {duration_s!r} is shorter than one output interval")
+        raise SimInputError("duration_s", f"{duration_s!r} is shorter than one output interval")
     return np.arange(n + 1) / rate_hz
 
 
@@ -137,7 +134,7 @@ def reciprocating(
             FourBar.from_config(linkage), 2.0 * math.pi * linkage.crank_frequency_hz, about="mid"
         )
     else:
-        raise ValueError(f"drive must be 'paper' or 'fourbar', got {drive!r}")
+        raise SimInputError("drive", f"must be 'paper' or 'fourbar', got {drive!r}")
     t = _times(duration_s, output_rate_hz)
     res = _dynamic(
         model,
@@ -170,7 +167,7 @@ def static(
     ``auto``: the exact elastica (nonlinear, closed form); ``rigid``: no deflection.
     """
     if not math.isfinite(mass_kg) or mass_kg < 0.0:
-        raise ValueError(f"mass_kg must be a non-negative finite number, got {mass_kg!r}")
+        raise SimInputError("mass_kg", f"must be a non-negative finite number, got {mass_kg!r}")
     props = BeamProperties.from_config(beam)
     force = mass_kg * gravity_m_s2
     if model == "modal":
@@ -184,7 +181,7 @@ def static(
     elif model == "rigid":
         res = simulate_rigid(props, FixedDrive(), np.zeros(1), gauge_positions_m=gauge_positions_m)
     else:
-        raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+        raise SimInputError("model", f"must be one of {', '.join(MODELS)}, got {model!r}")
     linear = force * props.length_m**3 / (3.0 * props.bending_stiffness_n_m2)
     return SceneRun(res, {"mass_kg": mass_kg, "tip_force_n": force, "linear_tip_m": linear})
 
@@ -209,20 +206,24 @@ def free_decay(
     damping ratio, and the equal a0 = a1 that reproduces ``target_log_decrement`` (default:
     the simulated decrement, a round trip)."""
     if model not in ("modal", "auto", "rigid", "fe"):
-        raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+        raise SimInputError("model", f"must be one of {', '.join(MODELS)}, got {model!r}")
     if model in ("fe", "rigid"):
         raise ModelNotAvailable(
-            f"the free-decay scene runs the modal model (a released {model} beam is not wired)"
+            model, "free-decay", "a released beam is wired for the modal model only"
         )
     if not math.isfinite(mass_kg) or mass_kg <= 0.0:
-        raise ValueError(f"mass_kg must be a positive finite number, got {mass_kg!r}")
+        raise SimInputError("mass_kg", f"must be a positive finite number, got {mass_kg!r}")
     a0 = damping.free_decay_a0_per_s if a0_per_s is None else a0_per_s
     a1 = damping.free_decay_a1_s if a1_s is None else a1_s
     gauges = list(gauge_positions_m)
     if not gauges:
-        raise ValueError("gauge_positions_m: the free-decay scene needs the gauges")
+        raise SimInputError(
+            "gauge_positions_m", "must not be empty: the free-decay scene needs them"
+        )
     if not 0 <= gauge_index < len(gauges):
-        raise ValueError(f"gauge_index {gauge_index!r} is not one of the {len(gauges)} gauges")
+        raise SimInputError(
+            "gauge_index", f"{gauge_index!r} is not one of the {len(gauges)} gauges"
+        )
     props = BeamProperties.from_config(beam)
     force = mass_kg * STANDARD_GRAVITY_M_S2
     mi = ModalModel.build(props, n_modes).integrals

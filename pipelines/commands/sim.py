@@ -20,7 +20,7 @@ from pipelines.results.sim_dataset import (
 from pipelines.rig import Rig
 from sim import scenes
 from sim.beam import BeamProperties
-from sim.solvers.linear_radau import SolverError
+from sim.errors import ModelNotAvailable, SolverError
 from sim.statics import table2_comparison
 
 HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-body, modes, linkage)"
@@ -279,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
                     f", log decrement {ex['log_decrement']:.5f}, zeta {ex['damping_ratio']:.5f}, "
                     f"identified a0 = a1 = {ex['identified_a0_per_s']:.6g}"
                 )
-    except scenes.ModelNotAvailable as exc:
+    except ModelNotAvailable as exc:
         raise BeambenchError(f"--model {args.model}: {exc}") from None
     except SolverError as exc:
         raise BeambenchError(f"{args.scene}: the solver failed: {exc}") from None

@@ -39,12 +39,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sim.beam import BeamProperties
+from sim.checks import check_simulation_inputs
 from sim.drives import Drive
+from sim.errors import SolverError
 from sim.models.modal import ModalModel, modal_result
-from sim.models.rigid import check_simulation_inputs
 from sim.modes import gauss_points, mode_shapes
 from sim.result import SimResult
-from sim.solvers.linear_radau import RADAU_C, SolverError, radau_grid, solve_ltv
+from sim.solvers.linear_radau import RADAU_C, radau_grid, solve_ltv
 
 FloatArray = NDArray[np.float64]
 
@@ -254,8 +255,9 @@ def integrate_modal_nonlinear(
             break
     else:
         raise SolverError(
-            f"the nonlinear modal iteration did not converge in {max_iterations} passes "
-            f"(last change {change:.3g} m); the deflection is too large for this model"
+            "nonlinear modal iteration",
+            f"no convergence in {max_iterations} passes (last change {change:.3g} m); "
+            "the deflection is too large for this model",
         )
     out = states[out_index]
     info = {

@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sim.errors import SimInputError, SolverError
+
 FloatArray = NDArray[np.float64]
 
 logger = logging.getLogger(__name__)
@@ -37,10 +39,7 @@ RADAU_A = np.array(
 Coefficients = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
 
 _CHUNK = 4096
-
-
-class SolverError(RuntimeError):
-    """The integration did not reach the requested tolerance (never a silent wrong answer)."""
+SOLVER = "linear Radau IIA"  # how errors name this solver
 
 
 def substeps(t_out: FloatArray, h_max: float) -> NDArray[np.intp]:
@@ -128,7 +127,7 @@ def radau_grid(
             y = np.einsum("kij,kj->ki", zx, states[c0:c1]) + zf
             stages_out[c0:c1] = y.reshape(k, 3, m)
     if not np.all(np.isfinite(states)):
-        raise SolverError("the Radau IIA recursion produced non-finite values")
+        raise SolverError(SOLVER, "the recursion produced non-finite values")
     return states
 
 
@@ -167,11 +166,11 @@ def solve_ltv(
     ``grid_out``, if given, receives the accepted step grid and the output indices in it.
     """
     if t_out.ndim != 1 or t_out.size < 1:
-        raise ValueError("t_eval_s must be a non-empty 1-D array")
+        raise SimInputError("t_eval_s", "must be a non-empty 1-D array")
     if t_out.size == 1:
         return x0[None, :].copy(), 0.0, 0.0
     if np.any(np.diff(t_out) <= 0.0):
-        raise ValueError("t_eval_s must be strictly increasing")
+        raise SimInputError("t_eval_s", "must be strictly increasing")
     n_sub = substeps(t_out, h_initial)
     grid, out_index = step_grid(t_out, n_sub)
     fine = radau_grid(coefficients, grid, x0)
@@ -197,6 +196,7 @@ def solve_ltv(
         common = np.arange(0, grid.size, 2)
         fine = radau_grid(coefficients, grid, x0)
     raise SolverError(
+        SOLVER,
         f"no convergence to rtol={rtol:g}, atol={atol:g} after {max_refinements} step halvings "
-        f"(estimated error {est:.3g}, scale {scale:.3g})"
+        f"(estimated error {est:.3g}, scale {scale:.3g})",
     )

@@ -24,7 +24,7 @@ stiff, *nonlinear* beams with Kelvin-Voigt damping:
 
 Together 2.3x faster than the full Newton with a fresh Jacobian per iteration that this
 module used before (0.063 -> 0.027 s per simulated second, 2 elements, same error).
-A failure raises :class:`sim.solvers.integrate.IntegrationError`, never a silently wrong answer.
+A failure raises :class:`sim.errors.IntegrationError`, never a silently wrong answer.
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack, lu_factor, lu_solve
+
+from sim.errors import IntegrationError
 
 FloatArray = NDArray[np.float64]
 
@@ -170,11 +172,9 @@ def radau5(
 
     Raises
     ------
-    sim.solvers.integrate.IntegrationError
+    sim.errors.IntegrationError
         if the step size underflows, Newton keeps failing or the state stops being finite.
     """
-    from sim.solvers.integrate import IntegrationError
-
     if rhs_jac_stages is None and jac_stages is not None:
         js_only = jac_stages
 

@@ -15,10 +15,10 @@ from scipy.optimize import brentq
 from sim.beam import BeamProperties, spin_up_beam
 from sim.config import BeamConfig
 from sim.drives import SinusoidDrive, SpinUpDrive
+from sim.errors import IntegrationError
 from sim.models.fe import simulate_fe, solve_static_fe
 from sim.models.fe_ancf import AncfBeam, AncfSystem
 from sim.models.fe_flxdyn import FlxdynSystem, element_stiffness_6x6
-from sim.solvers.integrate import IntegrationError
 
 LAMBDA = np.array([1.87510407, 4.69409113, 7.85475744])
 G_N_KG = 9.80665
