@@ -45,7 +45,8 @@ from sim.errors import SolverError
 from sim.models.modal import ModalModel, modal_result
 from sim.modes import gauss_points, mode_shapes
 from sim.result import SimResult
-from sim.solvers.linear_radau import RADAU_C, radau_grid, solve_ltv
+from sim.solvers.linear_radau import radau_grid, solve_ltv
+from sim.solvers.radau_iia import C
 
 FloatArray = NDArray[np.float64]
 
@@ -230,7 +231,7 @@ def integrate_modal_nonlinear(
     )
     grid, out_index = grid_info
     n_steps = grid.size - 1
-    stage_t = (grid[:-1, None] + np.diff(grid)[:, None] * RADAU_C[None, :]).ravel()
+    stage_t = (grid[:-1, None] + np.diff(grid)[:, None] * C[None, :]).ravel()
     rate = np.asarray(drive.rate(stage_t), dtype=float)
     acc = np.asarray(drive.accel(stage_t), dtype=float)
     minv = np.linalg.inv(model.integrals.mass)

@@ -12,7 +12,6 @@ control is on the global error at the outputs, not just the local error per step
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -20,20 +19,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim.errors import SimInputError, SolverError
+from sim.solvers.radau_iia import A, C
 
 FloatArray = NDArray[np.float64]
 
 logger = logging.getLogger(__name__)
-
-_S6 = math.sqrt(6.0)
-RADAU_C = np.array([(4.0 - _S6) / 10.0, (4.0 + _S6) / 10.0, 1.0])
-RADAU_A = np.array(
-    [
-        [(88.0 - 7.0 * _S6) / 360.0, (296.0 - 169.0 * _S6) / 1800.0, (-2.0 + 3.0 * _S6) / 225.0],
-        [(296.0 + 169.0 * _S6) / 1800.0, (88.0 + 7.0 * _S6) / 360.0, (-2.0 - 3.0 * _S6) / 225.0],
-        [(16.0 - _S6) / 36.0, (16.0 + _S6) / 36.0, 1.0 / 9.0],
-    ]
-)
 
 #: coefficients(t) -> (A, f): A of shape (K, m, m), f of shape (K, m) for K times.
 Coefficients = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
@@ -90,19 +80,19 @@ def radau_grid(
         if cache is not None and c0 in cache:
             inv, zx, f_vec = cache[c0]
         else:
-            ts = starts[c0:c1, None] + hs[:, None] * RADAU_C[None, :]  # (k, 3)
+            ts = starts[c0:c1, None] + hs[:, None] * C[None, :]  # (k, 3)
             a_mat, f_vec = coefficients(ts.ravel())
             a_mat = a_mat.reshape(k, 3, m, m)
             f_vec = f_vec.reshape(k, 3, m)
             big = np.zeros((k, 3 * m, 3 * m))
             for i in range(3):
                 for j in range(3):
-                    block = -(hs * RADAU_A[i, j])[:, None, None] * a_mat[:, j]
+                    block = -(hs * A[i, j])[:, None, None] * a_mat[:, j]
                     if i == j:
                         block = block + eye
                     big[:, i * m : (i + 1) * m, j * m : (j + 1) * m] = block
         forcing = f_vec if extra_forcing is None else f_vec + extra_forcing[c0:c1]
-        col = (hs[:, None, None] * np.einsum("ij,kjm->kim", RADAU_A, forcing)).reshape(k, 3 * m)
+        col = (hs[:, None, None] * np.einsum("ij,kjm->kim", A, forcing)).reshape(k, 3 * m)
         if cache is None:
             # one solve for the state columns and the forcing column together
             full = np.linalg.solve(

@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 from scipy.linalg import lapack, lu_factor, lu_solve
 
 from sim.errors import IntegrationError
+from sim.solvers.radau_iia import MU_COMPLEX, MU_REAL, TI, TI_COMPLEX, TI_REAL, A, C, E, P, T
 
 FloatArray = NDArray[np.float64]
 
@@ -47,48 +48,6 @@ JacobianStages = Callable[[FloatArray, FloatArray], FloatArray]  # (k,), (k, n) 
 # (k,), (k, n) -> (k, n), (k, n, n): f and its Jacobians at the same points, one evaluation
 RhsJacStages = Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
 
-_S6 = 6**0.5
-C = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
-E = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1.0]) / 3
-MU_REAL = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
-MU_COMPLEX = 3 + 0.5 * (3 ** (1 / 3) - 3 ** (2 / 3)) - 0.5j * (3 ** (5 / 6) + 3 ** (7 / 6))
-T = np.array(
-    [
-        [0.09443876248897524, -0.14125529502095421, 0.03002919410514742],
-        [0.25021312296533332, 0.20412935229379994, -0.38294211275726192],
-        [1.0, 1.0, 0.0],
-    ]
-)
-TI = np.array(
-    [
-        [4.17871859155190428, 0.32768282076106237, 0.52337644549944951],
-        [-4.17871859155190428, -0.32768282076106237, 0.47662355450055044],
-        [0.50287263494578682, -2.57192694985560522, 0.59603920482822492],
-    ]
-)
-TI_REAL = TI[0]
-TI_COMPLEX = TI[1] + 1j * TI[2]
-P = np.array(
-    [
-        [13 / 3 + 7 * _S6 / 3, -23 / 3 - 22 * _S6 / 3, 10 / 3 + 5 * _S6],
-        [13 / 3 - 7 * _S6 / 3, -23 / 3 + 22 * _S6 / 3, 10 / 3 - 5 * _S6],
-        [1 / 3, -8 / 3, 10 / 3],
-    ]
-)
-
-
-def _collocation_matrix() -> FloatArray:
-    """Radau IIA coefficients a_ij = int_0^{c_i} l_j(s) ds (l_j: Lagrange basis on C)."""
-    a = np.empty((3, 3))
-    for j in range(3):
-        others = [C[m] for m in range(3) if m != j]
-        coef = np.poly(others) / np.prod([C[j] - o for o in others])
-        prim = np.polyint(coef)
-        a[:, j] = np.polyval(prim, C) - np.polyval(prim, 0.0)
-    return a
-
-
-A = _collocation_matrix()
 NEWTON_MAXITER = 7
 #: contraction above which the stage Jacobians are re-evaluated at the current iterate
 #: (at 0.5 a Newton iteration still gains a bit per iteration; slower costs more iterations
