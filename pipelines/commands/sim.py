@@ -21,6 +21,7 @@ from pipelines.rig import Rig
 from sim import scenes
 from sim.beam import BeamProperties
 from sim.errors import ModelNotAvailable, SolverError
+from sim.models.registry import MODELS
 from sim.statics import table2_comparison
 
 HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-body, modes, linkage)"
@@ -43,7 +44,7 @@ def _finite(text: str) -> float:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", choices=SCENES)
     add_rig_argument(p)
-    p.add_argument("--model", choices=scenes.MODELS, default="auto")
+    p.add_argument("--model", choices=MODELS, default="auto")
     p.add_argument("--out", metavar="FILE.nc", default=None)
     p.add_argument(
         "--drive",

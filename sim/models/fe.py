@@ -124,7 +124,7 @@ def simulate_fe(
         a1 EA acts along the rotating centre line, so a Jacobian frozen over a step (scipy's
         Radau and BDF) makes Newton fail and the step collapse; with atol = rtol (1e-4 to
         1e-6) it is 8-10x faster than BDF at equal error on the paper's scene (what
-        :mod:`sim.model_choice` and the speed table use). At tight
+        :mod:`sim.models.model_choice` and the speed table use). At tight
         tolerances with a tiny atol (references, rtol 1e-6 and below) it is slower, so
         "auto" stays with scipy: BDF when a1 > 0, Radau when ``a1_s == 0`` (undamped stiff
         axial modes make high-order BDF crawl: it is not A-stable).

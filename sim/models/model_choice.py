@@ -1,4 +1,5 @@
-"""``auto``: the cheapest beam model whose estimated error for the scene is below ``tol``.
+"""``auto``: the cheapest beam model whose estimated error for the scene is below ``tol``
+(the ``auto`` entry of :mod:`sim.models.registry`).
 
 The estimate is a sum of parts, each relative to the largest tip deflection delta (of a
 quick modal run):
