@@ -10,10 +10,11 @@ Eqs. 35-36) with the exact centrifugal, Coriolis and Euler loads of the prescrib
   coordinates with cubic Hermite interpolation and the exact elastica strain energy.
 
 Proportional damping (Eq. 28), ``(a0 M + a1 K_T)`` times the elastic deformation rates,
-never acts on the rigid motion of the hub. Integration: Radau IIA or BDF with an exact
-Jacobian (scipy's, or for ``corot`` :mod:`sim.solvers.radau`: full Newton with each stage's
-Jacobian, the fast one at moderate tolerances), so the axial modes and the overdamped
-bending modes of the paper's damping (a1 = 0.1 s) cost little.
+never acts on the rigid motion of the hub; ``corot`` also has Kelvin-Voigt (strain-rate)
+damping, ``damping_law="material"``, the law of Exudyn's cable. Integration: Radau IIA or
+BDF with an exact Jacobian (scipy's, or for ``corot`` :mod:`sim.solvers.radau`: full Newton
+with each stage's Jacobian, the fast one at moderate tolerances), so the axial modes and the
+overdamped bending modes of the paper's damping (a1 = 0.1 s) cost little.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from sim.checks import (
 )
 from sim.drives import Drive
 from sim.errors import SimInputError, StaticSolveError
-from sim.models.fe_ancf import AncfBeam, AncfSystem
+from sim.models.fe_ancf import DAMPING_LAWS, AncfBeam, AncfSystem
 from sim.models.fe_flxdyn import FlxdynBeam, FlxdynSystem
 from sim.result import SimResult
 from sim.solvers.integrate import integrate
@@ -76,10 +77,16 @@ def _deflections(
 
 
 def _make_system(
-    formulation: str, beam: BeamProperties, n_elements: int, drive: Drive, a0: float, a1: float
+    formulation: str,
+    beam: BeamProperties,
+    n_elements: int,
+    drive: Drive,
+    a0: float,
+    a1: float,
+    damping_law: str,
 ) -> _System:
     if formulation == "corot":
-        return AncfSystem(beam, n_elements, drive, a0, a1)
+        return AncfSystem(beam, n_elements, drive, a0, a1, damping_law)
     return FlxdynSystem(beam, n_elements, drive, a0, a1)
 
 
@@ -98,6 +105,7 @@ def simulate_fe(
     atol: float = 1e-9,
     initial_state: ArrayLike | None = None,
     method: str = "auto",
+    damping_law: str = "paper",
 ) -> SimResult:
     """Simulate the beam clamped to a hub whose rotation ``drive`` prescribes.
 
@@ -128,6 +136,9 @@ def simulate_fe(
         tolerances with a tiny atol (references, rtol 1e-6 and below) it is slower, so
         "auto" stays with scipy: BDF when a1 > 0, Radau when ``a1_s == 0`` (undamped stiff
         axial modes make high-order BDF crawl: it is not A-stable).
+    damping_law : the ``a1`` term: ``"paper"`` (default), Eq. 28's ``a1 K_T v``, or
+        ``"material"`` (``corot`` only), Kelvin-Voigt strain-rate damping ``a1 K_mat v``,
+        Exudyn's cable law (:class:`sim.models.fe_ancf.AncfSystem` says what differs).
 
     Returns
     -------
@@ -150,7 +161,10 @@ def simulate_fe(
     a1 = check_non_negative("a1_s", a1_s)
     rt = check_positive("rtol", rtol)
     at = check_positive("atol", atol)
-    system = _make_system(form, beam, ne, drive, a0, a1)
+    law = check_choice("damping_law", damping_law, DAMPING_LAWS)
+    if law != "paper" and form != "corot":
+        raise SimInputError("damping_law", f"{law!r} needs formulation 'corot', got {form!r}")
+    system = _make_system(form, beam, ne, drive, a0, a1, law)
     if initial_state is None:
         y0 = system.initial_state()
     else:
@@ -182,7 +196,7 @@ def simulate_fe(
         "n_elements": ne,
         "rtol": rt,
         "atol": at,
-        "damping": {"a0_per_s": a0, "a1_s": a1},
+        "damping": {"a0_per_s": a0, "a1_s": a1, "law": law},
         "method": method,
         "n_rhs": traj.n_rhs,
         "n_jac": traj.n_jac,
