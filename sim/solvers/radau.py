@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack, lu_factor, lu_solve
 
-from sim.errors import IntegrationError
+from sim.errors import IntegrationError, SimInputError
 from sim.solvers.radau_iia import MU_COMPLEX, MU_REAL, TI, TI_COMPLEX, TI_REAL, A, C, E, P, T
 
 FloatArray = NDArray[np.float64]
@@ -106,6 +106,7 @@ def radau5(
     max_steps: int = 2_000_000,
     jac_stages: JacobianStages | None = None,
     rhs_jac_stages: RhsJacStages | None = None,
+    fixed_step_s: float | None = None,
 ) -> tuple[FloatArray, RadauStats, float]:
     """Integrate ``dy/dt = f(t, y)`` and return ``y`` at ``t_eval_s`` (T, n).
 
@@ -124,6 +125,11 @@ def radau5(
     rhs_jac_stages : ``(rhs_stages, jac_stages)`` at the same points in one call (cheaper
         where the Jacobians come with the function, e.g. complex-step); implies the Newton
         of ``jac_stages``.
+    fixed_step_s : if given, every step is this long (the last one shortened to end at
+        ``t_eval_s[-1]``) and the step-size controller is off: no error estimate, no
+        rejection, so ``rtol`` and ``atol`` only scale Newton's stopping test. For
+        convergence studies (the order of the method shows at the step ends); excludes
+        ``first_step_s``; a Newton iteration that fails to converge raises.
 
     Returns
     -------
@@ -141,6 +147,15 @@ def radau5(
             return rhs_stages(ts, ys), js_only(ts, ys)
 
     full = rhs_jac_stages is not None
+    fixed = fixed_step_s is not None
+    if fixed_step_s is not None:
+        if not (math.isfinite(fixed_step_s) and fixed_step_s > 0.0):
+            raise SimInputError(
+                "fixed_step_s", f"must be a positive finite number, got {fixed_step_s!r}"
+            )
+        if first_step_s is not None:
+            raise SimInputError("first_step_s", "must be None with a fixed_step_s")
+        first_step_s = fixed_step_s
     t_out = np.asarray(t_eval_s, dtype=float)
     y = np.array(y0, dtype=float)
     n = y.size
@@ -207,12 +222,18 @@ def radau5(
                 lu_r = _lu(MU_REAL / h * eye - js[0])
                 stats.n_lu += 1
             if not converged:
+                if fixed:
+                    problem = f"Newton does not converge at the fixed step {h:.3g} s"
+                    raise IntegrationError("radau5", t, problem)
                 h *= 0.5
                 rejected = True
                 stats.n_rejected += 1
                 stats.n_newton_failed += 1
                 continue
             y_new = y + z[-1]
+            if fixed:
+                err = 0.0  # no error control at a fixed step
+                break
             ze = (z.T @ E) / h
             error = _lu_solve(lu_r, f + ze)
             scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
@@ -235,7 +256,10 @@ def radau5(
                 stats.n_rejected += 1
                 continue
             break
-        factor = min(MAX_FACTOR, safety * _predict_factor(h, h_old, err, err_old))
+        if fixed:
+            factor = 1.0
+        else:
+            factor = min(MAX_FACTOR, safety * _predict_factor(h, h_old, err, err_old))
         if rejected:
             factor = min(1.0, factor)  # no growth right after a rejection (Hairer's RADAU5)
         q = z.T @ P  # (n, 3): y(t + x h) = y + q [x, x^2, x^3]
