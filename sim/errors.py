@@ -66,4 +66,4 @@ class StaticSolveError(SimError):
     def __init__(self, problem: str, load_step: int, n_load_steps: int) -> None:
         self.load_step = load_step
         self.n_load_steps = n_load_steps
-        super().__init__(f"{problem} at load step {load_step}/{n_load_steps}")
+        super().__init__(f"static solve: {problem} at load step {load_step}/{n_load_steps}")

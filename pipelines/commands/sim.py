@@ -20,7 +20,7 @@ from pipelines.results.sim_dataset import (
 from pipelines.rig import Rig
 from sim import scenes
 from sim.beam import BeamProperties
-from sim.errors import ModelNotAvailable, SolverError
+from sim.errors import ModelNotAvailable
 from sim.models.registry import MODELS
 from sim.statics import table2_comparison
 
@@ -282,8 +282,6 @@ def run(args: argparse.Namespace) -> int:
                 )
     except ModelNotAvailable as exc:
         raise BeambenchError(f"--model {args.model}: {exc}") from None
-    except SolverError as exc:
-        raise BeambenchError(f"{args.scene}: the solver failed: {exc}") from None
     except ValueError as exc:
         raise BeambenchError(f"{args.scene}: {exc}") from None
     if args.out is not None:
