@@ -19,6 +19,7 @@ from sim.errors import IntegrationError, SimInputError
 from sim.models.fe import simulate_fe, solve_static_fe
 from sim.models.fe_ancf import AncfBeam, AncfSystem
 from sim.models.fe_flxdyn import FlxdynSystem, element_stiffness_6x6
+from sim.models.modal import simulate_modal
 
 LAMBDA = np.array([1.87510407, 4.69409113, 7.85475744])
 G_N_KG = 9.80665
@@ -311,7 +312,6 @@ def test_reciprocating_formulations_agree_as_their_damping_predicts(
     the stiffening carried by the rotations *between* elements (a kinematic effect) is not
     damped, and with many elements FLXDYN tends to damping with the elastic K alone. With
     a1 omega ~ 0.5 at the drive frequency that is a ~1.2 % shift of the tip."""
-    modal = pytest.importorskip("sim.models.modal")
     t = np.linspace(0.0, 2.6, 261)
     drive = SinusoidDrive(0.7669, 4.970)
     kw: dict[str, Any] = {"a0_per_s": 0.0, "a1_s": 0.1, "rtol": 1e-8, "atol": 1e-11}
@@ -323,8 +323,8 @@ def test_reciprocating_formulations_agree_as_their_damping_predicts(
     def err(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.max(np.abs(a - b)) / amp)
 
-    m_kt = modal.simulate_modal(rig_beam, drive, t, n_modes=6, **kw)
-    m_k = modal.simulate_modal(rig_beam, drive, t, n_modes=6, damping_geometric=False, **kw)
+    m_kt = simulate_modal(rig_beam, drive, t, n_modes=6, **kw)
+    m_k = simulate_modal(rig_beam, drive, t, n_modes=6, damping_geometric=False, **kw)
     assert 0.008 < err(corot.tip_lateral_m, flx.tip_lateral_m) < 0.02
     assert err(flx.tip_lateral_m, m_k.tip_lateral_m) < 2e-3
     # what is left between the exact and the linear modal model: geometric nonlinearity
