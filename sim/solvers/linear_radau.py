@@ -6,7 +6,8 @@ whose matrices depend only on the known coefficients at the three stage times. A
 P_k, g_k of a run are formed by one batched linear solve (numpy), and the only sequential
 work is the affine recursion. Steps land on the output times; the step size is refined
 (halved) until two successive solutions agree to the requested tolerance, so the error
-control is on the global error at the outputs, not just the local error per step.
+control is on the global error at the outputs, not just the local error per step. The
+coefficients are :mod:`sim.solvers.radau_iia`'s, shared with :mod:`sim.solvers.radau`.
 """
 
 from __future__ import annotations
@@ -173,7 +174,7 @@ def solve_ltv(
         est = float(np.max(np.abs((fine[common] - coarse) @ error_weights))) / 15.0
         scale = float(np.max(np.abs(fine @ error_weights)))
         h = float(np.max(np.diff(grid)))
-        logger.debug("ltv: h = %.3g s, error estimate %.3g, scale %.3g", h, est, scale)
+        logger.debug("linear Radau: h = %.3g s, error estimate %.3g, scale %.3g", h, est, scale)
         if est <= atol + rtol * scale:
             if grid_out is not None:
                 grid_out.append(grid)

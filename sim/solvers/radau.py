@@ -24,7 +24,9 @@ stiff, *nonlinear* beams with Kelvin-Voigt damping:
 
 Together 2.3x faster than the full Newton with a fresh Jacobian per iteration that this
 module used before (0.063 -> 0.027 s per simulated second, 2 elements, same error).
-A failure raises :class:`sim.errors.IntegrationError`, never a silently wrong answer.
+The method's coefficients are :mod:`sim.solvers.radau_iia`'s, shared with the batched linear
+integrator. A failure raises :class:`sim.errors.IntegrationError`, never a silently wrong
+answer.
 """
 
 from __future__ import annotations
