@@ -24,6 +24,7 @@ from typing import Any
 from daq.config import DaqConfig, GaugeConfig, PotentiometerConfig
 from pipelines.errors import RigError
 from sim.config import BeamConfig, DampingConfig, DriveConfig, LinkageConfig
+from sim.models.registry import MODELS
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 
 DEFAULT_RIG_NAME = "rig.toml"
@@ -65,7 +66,7 @@ class SyntheticConfig:
             raise ValueError(
                 f"clock_drift_ppm must be within +/-1000, got {self.clock_drift_ppm!r}"
             )
-        if self.model not in ("auto", "rigid", "modal", "fe"):
+        if self.model not in MODELS:
             raise ValueError(f"model must be auto, rigid, modal or fe, got {self.model!r}")
         if self.scene not in SYNTHETIC_SCENES:
             raise ValueError(f"scene must be {' or '.join(SYNTHETIC_SCENES)}, got {self.scene!r}")

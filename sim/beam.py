@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from sim.config import BeamConfig
+from sim.errors import SimInputError
 
 
 @dataclass(frozen=True)
@@ -43,11 +44,11 @@ class BeamProperties:
         ):
             v = getattr(self, name)
             if not math.isfinite(v) or v <= 0.0:
-                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+                raise SimInputError(name, f"must be a positive finite number, got {v!r}")
         for name in ("hub_offset_m", "surface_offset_m"):
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0.0:
-                raise ValueError(f"{name} must be a non-negative finite number, got {v!r}")
+                raise SimInputError(name, f"must be a non-negative finite number, got {v!r}")
 
     @classmethod
     def from_config(cls, beam: BeamConfig) -> BeamProperties:

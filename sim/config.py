@@ -10,15 +10,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sim.errors import SimInputError
+
 
 def _positive(name: str, value: float) -> None:
     if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        raise SimInputError(name, f"must be a positive finite number, got {value!r}")
 
 
 def _non_negative(name: str, value: float) -> None:
     if not math.isfinite(value) or value < 0.0:
-        raise ValueError(f"{name} must be a non-negative finite number, got {value!r}")
+        raise SimInputError(name, f"must be a non-negative finite number, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -43,23 +45,27 @@ class LinkageConfig:
         for name in ("ground_m", "crank_m", "coupler_m", "rocker_m", "crank_frequency_hz"):
             _positive(name, getattr(self, name))
         if self.branch not in (1, -1):
-            raise ValueError(f"branch must be 1 (elbow up) or -1 (elbow down), got {self.branch!r}")
+            raise SimInputError(
+                "branch", f"must be 1 (elbow up) or -1 (elbow down), got {self.branch!r}"
+            )
         if not math.isfinite(self.beam_mount_angle_rad):
-            raise ValueError(
-                f"beam_mount_angle_rad must be finite, got {self.beam_mount_angle_rad!r}"
+            raise SimInputError(
+                "beam_mount_angle_rad", f"must be finite, got {self.beam_mount_angle_rad!r}"
             )
         lengths = sorted((self.ground_m, self.crank_m, self.coupler_m, self.rocker_m))
         s, p, q, l = lengths
         if s + l > p + q:
-            raise ValueError(
-                "crank_m: the linkage is not Grashof "
+            raise SimInputError(
+                "crank_m",
+                "cannot turn: the linkage is not Grashof "
                 f"(shortest + longest = {s + l:.6g} m > sum of the others = {p + q:.6g} m), "
-                "so no link can rotate fully and the crank cannot drive the rocker"
+                "so no link can rotate fully and the crank cannot drive the rocker",
             )
         if self.crank_m != s:
-            raise ValueError(
-                f"crank_m: a crank-rocker needs the crank to be the shortest link; "
-                f"crank = {self.crank_m!r} m, shortest = {s!r} m"
+            raise SimInputError(
+                "crank_m",
+                f"must be the shortest link for a crank-rocker; "
+                f"crank = {self.crank_m!r} m, shortest = {s!r} m",
             )
 
 
@@ -92,15 +98,17 @@ class BeamConfig:
             _positive(name, getattr(self, name))
         _non_negative("hub_offset_m", self.hub_offset_m)
         if self.thickness_m >= self.width_m:
-            raise ValueError(
-                f"thickness_m ({self.thickness_m!r}) must be smaller than width_m "
-                f"({self.width_m!r}): the beam bends across its thickness"
+            raise SimInputError(
+                "thickness_m",
+                f"({self.thickness_m!r}) must be smaller than width_m ({self.width_m!r}): "
+                "the beam bends across its thickness",
             )
         expected = self.width_m * self.thickness_m**3 / 12.0
         if abs(self.second_moment_m4 - expected) > 1e-3 * expected:
-            raise ValueError(
-                f"second_moment_m4 = {self.second_moment_m4:.6g} m^4 disagrees with "
-                f"width_m * thickness_m**3 / 12 = {expected:.6g} m^4"
+            raise SimInputError(
+                "second_moment_m4",
+                f"= {self.second_moment_m4:.6g} m^4 disagrees with "
+                f"width_m * thickness_m**3 / 12 = {expected:.6g} m^4",
             )
 
     @property

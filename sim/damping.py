@@ -14,21 +14,17 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 from scipy.signal import find_peaks
 
+from sim.checks import check_positive
+from sim.errors import SimInputError
+
 FloatArray = NDArray[np.float64]
-
-
-def _positive(name: str, value: float) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return v
 
 
 def modal_damping_ratio(a0_per_s: float, a1_s: float, omega_rad_s: ArrayLike) -> FloatArray:
     """zeta = a0 / (2 w) + a1 w / 2 (Eq. 37) for natural frequencies w (rad/s)."""
     w = np.asarray(omega_rad_s, dtype=float)
     if np.any(~np.isfinite(w)) or np.any(w <= 0.0):
-        raise ValueError("omega_rad_s must be positive and finite")
+        raise SimInputError("omega_rad_s", "must be positive and finite")
     return a0_per_s / (2.0 * w) + 0.5 * a1_s * w
 
 
@@ -36,8 +32,8 @@ def damping_ratios_from_coefficients(
     a0_per_s: float, a1_s: float, omega1_rad_s: float, omega2_rad_s: float
 ) -> tuple[float, float]:
     """(zeta1, zeta2) from (a0, a1) (Eq. 38)."""
-    w1 = _positive("omega1_rad_s", omega1_rad_s)
-    w2 = _positive("omega2_rad_s", omega2_rad_s)
+    w1 = check_positive("omega1_rad_s", omega1_rad_s)
+    w2 = check_positive("omega2_rad_s", omega2_rad_s)
     z = modal_damping_ratio(a0_per_s, a1_s, np.array([w1, w2]))
     return float(z[0]), float(z[1])
 
@@ -46,10 +42,10 @@ def coefficients_from_damping_ratios(
     zeta1: float, zeta2: float, omega1_rad_s: float, omega2_rad_s: float
 ) -> tuple[float, float]:
     """(a0 [1/s], a1 [s]) giving damping ratios zeta1, zeta2 at w1, w2 (Eq. 39)."""
-    w1 = _positive("omega1_rad_s", omega1_rad_s)
-    w2 = _positive("omega2_rad_s", omega2_rad_s)
+    w1 = check_positive("omega1_rad_s", omega1_rad_s)
+    w2 = check_positive("omega2_rad_s", omega2_rad_s)
     if w1 == w2:
-        raise ValueError("omega1_rad_s and omega2_rad_s must differ")
+        raise SimInputError("omega2_rad_s", "must differ from omega1_rad_s")
     f = 2.0 / (w2 * w2 - w1 * w1)
     a0 = f * (w1 * w2 * w2 * zeta1 - w1 * w1 * w2 * zeta2)
     a1 = f * (-w1 * zeta1 + w2 * zeta2)
@@ -60,8 +56,8 @@ def damping_ratio_from_log_decrement(log_decrement: float) -> float:
     """zeta = delta / sqrt(4 pi^2 + delta^2) (exact for a viscously damped oscillator)."""
     d = float(log_decrement)
     if not math.isfinite(d) or d < 0.0:
-        raise ValueError(
-            f"log_decrement must be a non-negative finite number, got {log_decrement!r}"
+        raise SimInputError(
+            "log_decrement", f"must be a non-negative finite number, got {log_decrement!r}"
         )
     return d / math.sqrt(4.0 * math.pi**2 + d * d)
 
@@ -70,7 +66,7 @@ def log_decrement_from_damping_ratio(zeta: float) -> float:
     """delta = 2 pi zeta / sqrt(1 - zeta^2), for 0 <= zeta < 1."""
     z = float(zeta)
     if not math.isfinite(z) or z < 0.0 or z >= 1.0:
-        raise ValueError(f"zeta must be in [0, 1) for an oscillating decay, got {zeta!r}")
+        raise SimInputError("zeta", f"must be in [0, 1) for an oscillating decay, got {zeta!r}")
     return 2.0 * math.pi * z / math.sqrt(1.0 - z * z)
 
 
@@ -96,7 +92,7 @@ def log_decrement(
     t = np.asarray(t_s, dtype=float).reshape(-1)
     y = np.asarray(signal, dtype=float).reshape(-1)
     if t.shape != y.shape or t.size < 8:
-        raise ValueError("t_s and signal must be equal-length 1-D arrays of at least 8 samples")
+        raise SimInputError("signal", "must be a 1-D array as long as t_s, of at least 8 samples")
     ok = np.isfinite(y) & np.isfinite(t)
     t, y = t[ok], y[ok]
     y = y - np.median(y[-max(4, y.size // 4) :])
@@ -107,7 +103,7 @@ def log_decrement(
     freqs = np.fft.rfftfreq(n_fft, dt)
     k = int(np.argmax(spectrum[1:])) + 1
     if freqs[k] * (t[-1] - t[0]) < min_peaks:
-        raise ValueError("signal: too few oscillations to measure a log decrement")
+        raise SimInputError("signal", "has too few oscillations to measure a log decrement")
     half_period = 0.5 / float(freqs[k])
     distance = max(1, int(1.4 * half_period / dt))
     top = float(np.max(np.abs(y)))
@@ -130,7 +126,7 @@ def log_decrement(
                 times.append(float(t[i]))
                 logs.append(math.log(value))
     if len(times) < min_peaks:
-        raise ValueError("signal: too few peaks above the noise floor")
+        raise SimInputError("signal", "has too few peaks above the noise floor")
     slope = np.polyfit(np.asarray(times), np.asarray(logs), 1)[0]
     return float(-slope * 2.0 * half_period)
 
@@ -156,7 +152,7 @@ def identify_equal_coefficients(
     -------
     a (both a0 in 1/s and a1 in s).
     """
-    target = _positive("target_log_decrement", target_log_decrement)
+    target = check_positive("target_log_decrement", target_log_decrement)
 
     def miss(a: float) -> float:
         t, s = simulate(a)
@@ -164,8 +160,9 @@ def identify_equal_coefficients(
 
     f_lo, f_hi = miss(lower), miss(upper)
     if f_lo * f_hi > 0.0:
-        raise ValueError(
-            f"target_log_decrement {target!r} is not bracketed by a in [{lower!r}, {upper!r}] "
-            f"(decrements {f_lo + target:.4g} .. {f_hi + target:.4g})"
+        raise SimInputError(
+            "target_log_decrement",
+            f"{target!r} is not bracketed by a in [{lower!r}, {upper!r}] "
+            f"(decrements {f_lo + target:.4g} .. {f_hi + target:.4g})",
         )
     return float(brentq(miss, lower, upper, rtol=rtol))

@@ -15,6 +15,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim.errors import SimInputError
+
 FloatArray = NDArray[np.float64]
 
 
@@ -79,13 +81,13 @@ class FourBarDrive:
             if not hasattr(four_bar, attr):
                 raise TypeError(f"four_bar must be a sim.four_bar.FourBar, lacks {attr}")
         if not np.isfinite(crank_speed_rad_s) or crank_speed_rad_s == 0.0:
-            raise ValueError(
-                f"crank_speed_rad_s must be a finite non-zero number, got {crank_speed_rad_s!r}"
+            raise SimInputError(
+                "crank_speed_rad_s", f"must be a finite non-zero number, got {crank_speed_rad_s!r}"
             )
         if about not in ("mid", "absolute"):
-            raise ValueError(f"about must be 'mid' or 'absolute', got {about!r}")
+            raise SimInputError("about", f"must be 'mid' or 'absolute', got {about!r}")
         if not np.isfinite(crank_phase_rad):
-            raise ValueError(f"crank_phase_rad must be finite, got {crank_phase_rad!r}")
+            raise SimInputError("crank_phase_rad", f"must be finite, got {crank_phase_rad!r}")
         self.four_bar = four_bar
         self.crank_speed_rad_s = float(crank_speed_rad_s)
         self.about = about
@@ -199,16 +201,20 @@ class TraceDrive:
         t = np.asarray(t_s, dtype=float).reshape(-1)
         y = np.asarray(angle_rad, dtype=float).reshape(-1)
         if t.shape != y.shape:
-            raise ValueError(
-                f"t_s and angle_rad must have the same length, got {t.size} and {y.size}"
+            raise SimInputError(
+                "angle_rad", f"must have the length of t_s, got {y.size} and {t.size}"
             )
         if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
-            raise ValueError("t_s must be finite and strictly increasing")
+            raise SimInputError("t_s", "must be finite and strictly increasing")
         ok = np.isfinite(y)
         if ok.sum() < 5:
-            raise ValueError(f"angle_rad needs at least 5 finite samples, got {int(ok.sum())}")
+            raise SimInputError(
+                "angle_rad", f"needs at least 5 finite samples, got {int(ok.sum())}"
+            )
         if smoothing is not None and (not np.isfinite(smoothing) or smoothing < 0.0):
-            raise ValueError(f"smoothing must be a non-negative number or None, got {smoothing!r}")
+            raise SimInputError(
+                "smoothing", f"must be a non-negative number or None, got {smoothing!r}"
+            )
         self.t_min_s = float(t[ok][0])
         self.t_max_s = float(t[ok][-1])
         tp, yp = _pad_ends(t[ok], y[ok])
@@ -223,8 +229,8 @@ class TraceDrive:
         t = _times(t_s)
         span = self.t_max_s - self.t_min_s
         if np.any(t < self.t_min_s - 1e-9 * span) or np.any(t > self.t_max_s + 1e-9 * span):
-            raise ValueError(
-                f"t_s must lie within the trace, [{self.t_min_s!r}, {self.t_max_s!r}] s"
+            raise SimInputError(
+                "t_s", f"must lie within the trace, [{self.t_min_s!r}, {self.t_max_s!r}] s"
             )
         return t
 
@@ -252,9 +258,9 @@ class SpinUpDrive:
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.omega_s_rad_s):
-            raise ValueError(f"omega_s_rad_s must be finite, got {self.omega_s_rad_s!r}")
+            raise SimInputError("omega_s_rad_s", f"must be finite, got {self.omega_s_rad_s!r}")
         if not np.isfinite(self.ramp_s) or self.ramp_s <= 0.0:
-            raise ValueError(f"ramp_s must be a positive finite number, got {self.ramp_s!r}")
+            raise SimInputError("ramp_s", f"must be a positive finite number, got {self.ramp_s!r}")
 
     def angle(self, t_s: ArrayLike) -> FloatArray:
         t = _times(t_s)

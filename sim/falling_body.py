@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
 from sim.beam import BeamProperties
+from sim.errors import IntegrationError, SimInputError
 from sim.modes import gauss_points, modal_integrals, mode_shapes
 
 FloatArray = NDArray[np.float64]
@@ -53,13 +54,13 @@ class FallingBody:
         for name in ("body_mass_kg", "body_inertia_kg_m2"):
             v = getattr(self, name)
             if not math.isfinite(v) or v <= 0.0:
-                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+                raise SimInputError(name, f"must be a positive finite number, got {v!r}")
         for name in ("clamp_offset_m", "gravity_m_s2"):
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0.0:
-                raise ValueError(f"{name} must be a non-negative finite number, got {v!r}")
+                raise SimInputError(name, f"must be a non-negative finite number, got {v!r}")
         if isinstance(self.n_modes, bool) or not isinstance(self.n_modes, int) or self.n_modes < 1:
-            raise ValueError(f"n_modes must be a positive integer, got {self.n_modes!r}")
+            raise SimInputError("n_modes", f"must be a positive integer, got {self.n_modes!r}")
 
     # -- quadrature data ----------------------------------------------------------------------
     def _quadrature(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -136,9 +137,9 @@ class FallingBody:
         t = np.asarray(t_eval_s, dtype=float)
         x0 = np.asarray(initial_state, dtype=float).reshape(-1)
         if x0.shape != (6 + 2 * self.n_modes,) or not np.all(np.isfinite(x0)):
-            raise ValueError(f"initial_state must be {6 + 2 * self.n_modes} finite numbers")
+            raise SimInputError("initial_state", f"must be {6 + 2 * self.n_modes} finite numbers")
         if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0.0):
-            raise ValueError("t_eval_s must be a strictly increasing 1-D array of >= 2 times")
+            raise SimInputError("t_eval_s", "must be a strictly increasing 1-D array of >= 2 times")
         quad = self._quadrature()
         start = time.perf_counter()
         sol = solve_ivp(
@@ -152,7 +153,8 @@ class FallingBody:
         )
         wall = time.perf_counter() - start
         if not sol.success:
-            raise RuntimeError(f"falling body integration failed: {sol.message}")
+            t_fail = float(sol.t[-1]) if sol.t.size else float(t[0])
+            raise IntegrationError("DOP853", t_fail, f"falling body: {sol.message}")
         return FallingBodyRun(self, t, sol.y.T.copy(), wall)
 
 

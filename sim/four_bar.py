@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sim.config import LinkageConfig
+from sim.errors import SimInputError
 
 FloatArray = NDArray[np.float64]
 
@@ -63,7 +64,7 @@ def classify_grashof(ground_m: float, crank_m: float, coupler_m: float, rocker_m
     lengths["rocker_m"] = rocker_m
     for name, value in lengths.items():
         if not math.isfinite(value) or value <= 0.0:
-            raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+            raise SimInputError(name, f"must be a positive finite number, got {value!r}")
     ordered = sorted(lengths.values())
     s, p, q, l = ordered
     excess = (s + l) - (p + q)
@@ -128,12 +129,13 @@ class FourBar:
     ) -> None:
         self.grashof = classify_grashof(ground_m, crank_m, coupler_m, rocker_m)
         if branch not in (1, -1):
-            raise ValueError(f"branch must be +1 or -1, got {branch!r}")
+            raise SimInputError("branch", f"must be +1 or -1, got {branch!r}")
         if require_crank_rocker and self.grashof != "crank-rocker":
-            raise ValueError(
-                f"crank_m: the linkage (ground {ground_m!r}, crank {crank_m!r}, coupler "
-                f"{coupler_m!r}, rocker {rocker_m!r} m) is {self.grashof}, not a crank-rocker "
-                "(Grashof with the crank as shortest link)"
+            raise SimInputError(
+                "crank_m",
+                f"cannot drive the rocker: the linkage (ground {ground_m!r}, crank {crank_m!r}, "
+                f"coupler {coupler_m!r}, rocker {rocker_m!r} m) is {self.grashof}, not a "
+                "crank-rocker (Grashof with the crank as shortest link)",
             )
         self.ground_m = float(ground_m)
         self.crank_m = float(crank_m)
@@ -154,7 +156,9 @@ class FourBar:
         psi = np.linspace(0.0, 2.0 * math.pi, 721)
         ok = self._radicand(psi) >= 0.0
         if not ok.any():
-            raise ValueError("the linkage cannot assemble at any crank angle")
+            raise SimInputError(
+                "link lengths", "make a linkage that cannot assemble at any crank angle"
+            )
         return float(psi[np.argmax(ok)])
 
     def crank_tip_m(self, crank_angle_rad: ArrayLike) -> FloatArray:
@@ -186,9 +190,10 @@ class FourBar:
         bad = rad < -1e-14 * (a1 + a2 + a3 + a4) ** 4
         if np.any(bad):
             where = float(np.asarray(psi)[bad].ravel()[0])
-            raise ValueError(
-                f"crank_angle_rad: the linkage cannot assemble at crank angle {where!r} rad "
-                "(coupler cannot reach the rocker)"
+            raise SimInputError(
+                "crank_angle_rad",
+                f"{where!r} rad is out of reach: the linkage cannot assemble there "
+                "(coupler cannot reach the rocker)",
             )
         gamma = np.arctan2(np.sqrt(np.maximum(rad, 0.0)), a4 * a4 + r2 - a3 * a3)
         phi = np.arctan2(dy, dx) - self.branch * gamma

@@ -18,6 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
+from sim.errors import SimInputError
+
 FloatArray = NDArray[np.float64]
 
 
@@ -43,7 +45,7 @@ def clamped_free_eigenvalues(n_modes: int) -> FloatArray:
     (n_modes,) array: 1.87510407, 4.69409113, 7.85475744, ... -> (i - 1/2) pi.
     """
     if not isinstance(n_modes, int | np.integer) or n_modes < 1:
-        raise ValueError(f"n_modes must be a positive integer, got {n_modes!r}")
+        raise SimInputError("n_modes", f"must be a positive integer, got {n_modes!r}")
     return np.array(_eigenvalues_cached(int(n_modes)))
 
 
@@ -99,10 +101,10 @@ def mode_shapes(x_m: ArrayLike, length_m: float, n_modes: int, derivative: int =
     mean square 1 over the beam).
     """
     if derivative not in (0, 1, 2, 3, 4):
-        raise ValueError(f"derivative must be 0..4, got {derivative!r}")
+        raise SimInputError("derivative", f"must be 0..4, got {derivative!r}")
     x = np.atleast_1d(np.asarray(x_m, dtype=float))
     if np.any(x < -1e-12 * length_m) or np.any(x > length_m * (1.0 + 1e-12)):
-        raise ValueError("x_m must lie within [0, length_m]")
+        raise SimInputError("x_m", "must lie within [0, length_m]")
     lam = clamped_free_eigenvalues(n_modes)
     xi = np.clip(x / length_m, 0.0, 1.0)
     out = np.empty((x.size, n_modes))

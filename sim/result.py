@@ -8,6 +8,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim.errors import SimInputError
+
 FloatArray = NDArray[np.float64]
 
 
@@ -55,16 +57,18 @@ class SimResult:
         n = self.time_s.shape[0]
         for name in ("hub_angle_rad", "tip_lateral_m", "tip_longitudinal_m"):
             if getattr(self, name).shape != (n,):
-                raise ValueError(f"{name} must have shape ({n},), got {getattr(self, name).shape}")
+                raise SimInputError(
+                    name, f"must have shape ({n},), got {getattr(self, name).shape}"
+                )
         s = self.stations_m.shape[0]
         for name in ("station_lateral_m", "station_longitudinal_m"):
             if getattr(self, name).shape != (n, s):
-                raise ValueError(
-                    f"{name} must have shape ({n}, {s}), got {getattr(self, name).shape}"
+                raise SimInputError(
+                    name, f"must have shape ({n}, {s}), got {getattr(self, name).shape}"
                 )
         g = self.gauge_positions_m.shape[0]
         if self.strain.shape != (n, g):
-            raise ValueError(f"strain must have shape ({n}, {g}), got {self.strain.shape}")
+            raise SimInputError("strain", f"must have shape ({n}, {g}), got {self.strain.shape}")
 
     # -- row operations (per output time) -------------------------------------------------
     _PER_TIME = (
@@ -91,7 +95,7 @@ class SimResult:
 
         t = np.asarray(t_before_s, dtype=float).reshape(-1)
         if t.size and not t[-1] < self.time_s[0]:
-            raise ValueError("t_before_s must all be earlier than the result's first time")
+            raise SimInputError("t_before_s", "must all be earlier than the result's first time")
         new: dict[str, Any] = {
             k: np.concatenate([np.repeat(getattr(self, k)[:1], t.size, axis=0), getattr(self, k)])
             for k in self._PER_TIME

@@ -1,9 +1,9 @@
 """The simulator's scenes: what ``beambench sim SCENE`` runs, as plain functions.
 
 Each scene takes the bench's configuration dataclasses (``sim.config``) and returns a
-:class:`SceneRun`: the :class:`SimResult` and the scene's extra numbers. The finite-element
-and automatic models live in ``sim.models.fe`` and ``sim.model_choice``; when one of them is
-missing the scene raises :class:`ModelNotAvailable` rather than substituting another model.
+:class:`SceneRun`: the :class:`SimResult` and the scene's extra numbers. A scene that does
+not run the requested model raises :class:`sim.errors.ModelNotAvailable` rather than
+substituting another model.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim.beam import BeamProperties, spin_up_beam
+from sim.checks import check_non_negative, check_positive
 from sim.config import BeamConfig, DampingConfig, DriveConfig, LinkageConfig
 from sim.damping import (
     damping_ratio_from_log_decrement,
@@ -26,6 +27,7 @@ from sim.damping import (
     modal_damping_ratio,
 )
 from sim.drives import Drive, FixedDrive, FourBarDrive, SinusoidDrive, SpinUpDrive
+from sim.errors import ModelNotAvailable, SimInputError
 from sim.falling_body import STANDARD_GRAVITY_M_S2, FallingBody
 from sim.four_bar import (
     PAPER_CRANK_AT_MAX_RAD,
@@ -34,8 +36,9 @@ from sim.four_bar import (
     PAPER_ROCKER_MIN_RAD,
     FourBar,
 )
+from sim.models.fe import solve_static_fe
 from sim.models.modal import ModalModel, modal_result, simulate_modal
-from sim.models.modal_nonlinear import simulate_modal_nonlinear
+from sim.models.registry import check_model, simulate
 from sim.models.rigid import simulate_rigid
 from sim.modes import clamped_free_eigenvalues, mode_shapes, natural_frequencies_rad_s
 from sim.result import SimResult
@@ -43,11 +46,7 @@ from sim.statics import solve_static_elastica, solve_static_modal
 
 FloatArray = NDArray[np.float64]
 
-MODELS = ("auto", "rigid", "modal", "fe")
-
-
-class ModelNotAvailable(RuntimeError):
-    """The requested model is not (yet) part of this installation or this scene."""
+SCENE_MODAL_RTOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -56,57 +55,20 @@ class SceneRun:
     extras: dict[str, Any] = field(default_factory=dict)
 
 
-def _dynamic(
-    model: str,
-    beam: BeamProperties,
-    drive: Drive,
-    t: FloatArray,
-    *,
-    a0: float,
-    a1: float,
-    gauges: Sequence[float],
-    n_modes: int,
-    rtol: float | None,
-    nonlinear: bool = False,
-) -> SimResult:
-    """Run a dynamic model; ``rtol=None`` leaves each model at its own default (modal 1e-6,
-    fe 1e-6, auto tol 1e-4). ``nonlinear`` selects the third-order modal model."""
-    if model == "rigid":
-        return simulate_rigid(beam, drive, t, gauge_positions_m=gauges)
-    if model == "modal":
-        simulate = simulate_modal_nonlinear if nonlinear else simulate_modal
-        return simulate(
-            beam,
-            drive,
-            t,
-            n_modes=n_modes,
-            a0_per_s=a0,
-            a1_s=a1,
-            gauge_positions_m=gauges,
-            rtol=1e-6 if rtol is None else rtol,
-            atol=1e-12,
-        )
-    kw: dict[str, Any]
-    if model == "fe":
-        from sim.models.fe import simulate_fe
-
-        kw = {} if rtol is None else {"rtol": rtol}
-        return simulate_fe(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
-    if model == "auto":
-        from sim.model_choice import simulate_auto
-
-        kw = {} if rtol is None else {"tol": rtol}
-        return simulate_auto(beam, drive, t, a0_per_s=a0, a1_s=a1, gauge_positions_m=gauges, **kw)
-    raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+def _scene_tol(model: str, rtol: float | None) -> float | None:
+    """The scenes run the modal model at rtol 1e-6 unless told otherwise (the model's own
+    default is 1e-8); the other models keep their own defaults (fe rtol 1e-6, auto tol 1e-4)."""
+    if rtol is None and model == "modal":
+        return SCENE_MODAL_RTOL
+    return rtol
 
 
 def _times(duration_s: float, rate_hz: float) -> FloatArray:
-    for name, v in (("duration_s", duration_s), ("output_rate_hz", rate_hz)):
-        if not math.isfinite(v) or v <= 0.0:
-            raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+    check_positive("duration_s", duration_s)
+    check_positive("output_rate_hz", rate_hz)
     n = round(duration_s * rate_hz)
     if n < 1:
-        raise ValueError(f"duration_s {duration_s!r} is shorter than one output interval")
+        raise SimInputError("duration_s", f"{duration_s!r} is shorter than one output interval")
     return np.arange(n + 1) / rate_hz
 
 
@@ -137,18 +99,18 @@ def reciprocating(
             FourBar.from_config(linkage), 2.0 * math.pi * linkage.crank_frequency_hz, about="mid"
         )
     else:
-        raise ValueError(f"drive must be 'paper' or 'fourbar', got {drive!r}")
+        raise SimInputError("drive", f"must be 'paper' or 'fourbar', got {drive!r}")
     t = _times(duration_s, output_rate_hz)
-    res = _dynamic(
+    res = simulate(
         model,
         props,
         hub,
         t,
-        a0=a0_per_s,
-        a1=a1_s,
-        gauges=gauge_positions_m,
+        a0_per_s=a0_per_s,
+        a1_s=a1_s,
+        gauge_positions_m=gauge_positions_m,
         n_modes=n_modes,
-        rtol=rtol,
+        tol=_scene_tol(model, rtol),
         nonlinear=nonlinear,
     )
     return SceneRun(res, {"drive": drive, "a0_per_s": a0_per_s, "a1_s": a1_s})
@@ -169,22 +131,17 @@ def static(
     ``fe``: geometrically nonlinear finite elements (``sim.models.fe.solve_static_fe``);
     ``auto``: the exact elastica (nonlinear, closed form); ``rigid``: no deflection.
     """
-    if not math.isfinite(mass_kg) or mass_kg < 0.0:
-        raise ValueError(f"mass_kg must be a non-negative finite number, got {mass_kg!r}")
+    check_non_negative("mass_kg", mass_kg)
     props = BeamProperties.from_config(beam)
     force = mass_kg * gravity_m_s2
-    if model == "modal":
+    if check_model(model) == "modal":
         res = solve_static_modal(props, force, n_modes=n_modes, gauge_positions_m=gauge_positions_m)
     elif model == "fe":
-        from sim.models.fe import solve_static_fe
-
         res = solve_static_fe(props, force, gauge_positions_m=gauge_positions_m)
     elif model == "auto":
         res = solve_static_elastica(props, force, gauge_positions_m=gauge_positions_m)
-    elif model == "rigid":
-        res = simulate_rigid(props, FixedDrive(), np.zeros(1), gauge_positions_m=gauge_positions_m)
     else:
-        raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+        res = simulate_rigid(props, FixedDrive(), np.zeros(1), gauge_positions_m=gauge_positions_m)
     linear = force * props.length_m**3 / (3.0 * props.bending_stiffness_n_m2)
     return SceneRun(res, {"mass_kg": mass_kg, "tip_force_n": force, "linear_tip_m": linear})
 
@@ -208,21 +165,22 @@ def free_decay(
     the log decrement of the strain at gauge ``gauge_index`` (gauge 2, as §5.2.1), its
     damping ratio, and the equal a0 = a1 that reproduces ``target_log_decrement`` (default:
     the simulated decrement, a round trip)."""
-    if model not in ("modal", "auto", "rigid", "fe"):
-        raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
-    if model in ("fe", "rigid"):
+    if check_model(model) in ("fe", "rigid"):
         raise ModelNotAvailable(
-            f"the free-decay scene runs the modal model (a released {model} beam is not wired)"
+            model, "free-decay", "a released beam is wired for the modal model only"
         )
-    if not math.isfinite(mass_kg) or mass_kg <= 0.0:
-        raise ValueError(f"mass_kg must be a positive finite number, got {mass_kg!r}")
+    check_positive("mass_kg", mass_kg)
     a0 = damping.free_decay_a0_per_s if a0_per_s is None else a0_per_s
     a1 = damping.free_decay_a1_s if a1_s is None else a1_s
     gauges = list(gauge_positions_m)
     if not gauges:
-        raise ValueError("gauge_positions_m: the free-decay scene needs the gauges")
+        raise SimInputError(
+            "gauge_positions_m", "must not be empty: the free-decay scene needs them"
+        )
     if not 0 <= gauge_index < len(gauges):
-        raise ValueError(f"gauge_index {gauge_index!r} is not one of the {len(gauges)} gauges")
+        raise SimInputError(
+            "gauge_index", f"{gauge_index!r} is not one of the {len(gauges)} gauges"
+        )
     props = BeamProperties.from_config(beam)
     force = mass_kg * STANDARD_GRAVITY_M_S2
     mi = ModalModel.build(props, n_modes).integrals
@@ -286,23 +244,17 @@ def spin_up(
     beam = spin_up_beam()
     hub = SpinUpDrive(omega_rad_s, ramp_s)
     t = _times(duration_s, output_rate_hz)
-    if model == "modal" and not stiffening:
-        res = simulate_modal(
-            beam, hub, t, n_modes=n_modes, stiffening=False, rtol=1e-6 if rtol is None else rtol
-        )
-    else:
-        res = _dynamic(
-            model,
-            beam,
-            hub,
-            t,
-            a0=0.0,
-            a1=0.0,
-            gauges=(),
-            n_modes=n_modes,
-            rtol=rtol,
-            nonlinear=nonlinear,
-        )
+    res = simulate(
+        model,
+        beam,
+        hub,
+        t,
+        n_modes=n_modes,
+        tol=_scene_tol(model, rtol),
+        # without stiffening it is seed 001's linear model: ``nonlinear`` does not apply
+        nonlinear=nonlinear and stiffening,
+        stiffening=stiffening,
+    )
     return SceneRun(res, {"omega_rad_s": omega_rad_s, "ramp_s": ramp_s})
 
 

@@ -29,8 +29,8 @@ from scipy.optimize import brentq
 from scipy.special import ellipeinc, ellipj, ellipkinc
 
 from sim.beam import BeamProperties
+from sim.checks import check_beam, check_gauges, check_int, check_non_negative
 from sim.models.modal import station_foreshortening_matrices
-from sim.models.rigid import check_non_negative
 from sim.modes import modal_integrals, mode_shapes
 from sim.result import SimResult
 
@@ -43,15 +43,11 @@ def _prepare(
     gauge_positions_m: Sequence[float] | ArrayLike,
     n_stations: int,
 ) -> tuple[BeamProperties, float, FloatArray, FloatArray]:
-    if not isinstance(beam, BeamProperties):
-        raise TypeError(f"beam must be a sim.beam.BeamProperties, got {type(beam).__name__}")
+    checked = check_beam(beam)
     p = check_non_negative("tip_force_n", tip_force_n)
-    gauges = np.atleast_1d(np.asarray(gauge_positions_m, dtype=float)).reshape(-1)
-    if np.any(~np.isfinite(gauges)) or np.any(gauges < 0.0) or np.any(gauges > beam.length_m):
-        raise ValueError(f"gauge_positions_m must lie within [0, {beam.length_m!r}] m")
-    if isinstance(n_stations, bool) or not isinstance(n_stations, int) or n_stations < 2:
-        raise ValueError(f"n_stations must be an integer >= 2, got {n_stations!r}")
-    return beam, p, gauges, np.linspace(0.0, beam.length_m, n_stations)
+    gauges = check_gauges(gauge_positions_m, checked.length_m)
+    ns = check_int("n_stations", n_stations, 2)
+    return checked, p, gauges, np.linspace(0.0, checked.length_m, ns)
 
 
 def _result(

@@ -181,32 +181,23 @@ class SyntheticBench:
 
 
 def _simulate(rig: Rig, beam: BeamProperties, drive: FourBarDrive, t: FloatArray) -> SimResult:
-    kwargs: dict[str, Any] = {
-        "a0_per_s": rig.damping.a0_per_s,
-        "a1_s": rig.damping.a1_s,
-        "gauge_positions_m": rig.gauges.positions_m,
-        "n_stations": 41,
-    }
+    from sim.models.registry import simulate
+
     model = rig.synthetic.model
-    if model == "rigid":
-        from sim.models.rigid import simulate_rigid
-
-        return simulate_rigid(
-            beam, drive, t, gauge_positions_m=rig.gauges.positions_m, n_stations=41
-        )
-    if model == "modal":
-        from sim.models.modal import simulate_modal
-
-        return simulate_modal(beam, drive, t, n_modes=4, **kwargs)
-    if model == "fe":
-        from sim.models.fe import simulate_fe
-
-        return simulate_fe(beam, drive, t, **kwargs)
-    from sim.model_choice import simulate_auto
-
-    # The fakes' truth: ten times finer than the comparison processing makes (2 %)
-    # and than the bench's own uncertainties.
-    return simulate_auto(beam, drive, t, tol=1e-3, **kwargs)
+    return simulate(
+        model,
+        beam,
+        drive,
+        t,
+        a0_per_s=rig.damping.a0_per_s,
+        a1_s=rig.damping.a1_s,
+        gauge_positions_m=rig.gauges.positions_m,
+        n_stations=41,
+        n_modes=4,
+        # The fakes' truth: ten times finer than the comparison processing makes (2 %)
+        # and than the bench's own uncertainties; modal and fe at their own tolerances.
+        tol=1e-3 if model == "auto" else None,
+    )
 
 
 def _simulate_free_decay(

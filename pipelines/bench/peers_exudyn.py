@@ -31,9 +31,10 @@ inertial one). It cannot represent
   counterpart (a constant damping matrix on Exudyn's absolute coordinates would also damp
   the hub's rigid rotation); it is left out (~1e-3 of the tip here).
 
-:func:`simulate_fe_kelvin_voigt` is beambench's own FE with Exudyn's damping law (material
-``a1`` term, optional ``a0 M v``), so the two codes can be compared on one model and the
-Eq. 28 gap measured by itself.
+:func:`simulate_fe_kelvin_voigt` is beambench's own FE with Exudyn's damping law
+(``simulate_fe(..., damping_law="material")``: the material ``a1`` term, optional
+``a0 M v``), so the two codes can be compared on one model and the Eq. 28 gap measured by
+itself.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -48,9 +50,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from sim.beam import BeamProperties
 from sim.drives import Drive, SinusoidDrive, SpinUpDrive
-from sim.models.fe_ancf import AncfSystem, _damped_force_fast
+from sim.models.fe import simulate_fe
 from sim.result import SimResult
-from sim.solvers.integrate import integrate
 
 FloatArray = NDArray[np.float64]
 
@@ -355,42 +356,6 @@ def first_frequency_hz(
     return float(np.min(freqs))
 
 
-# -- beambench's FE with Exudyn's damping law --------------------------------------------
-def _kelvin_voigt_force(
-    gh: Any, dgh: Any, ea: Any, ei: Any, a1: float
-) -> Any:  # complex arrays too (complex-step derivatives)
-    """Energy gradient plus ``a1`` times the material (strain-rate) part of its rate:
-    ``a1 (EA eps' grad eps + EI kappa' grad kappa)``; (4, P, ...) -> (4 P, ...)."""
-    elastic = _damped_force_fast(gh, dgh, ea, ei, 0.0)
-    if a1 == 0.0:
-        return elastic
-    g1, g2, h1, h2 = gh
-    n = g1 * g1 + g2 * g2
-    isq = 1.0 / np.sqrt(n)
-    i3 = isq * isq * isq
-    c = g1 * h2 - g2 * h1
-    de = [g1 * isq, g2 * isq, 0.0 * g1, 0.0 * g1]  # grad eps, eps = |g| - 1
-    dk = [  # grad kappa, kappa = c / |g|^3
-        h2 * i3 - 3.0 * c * i3 * g1 / n,
-        -h1 * i3 - 3.0 * c * i3 * g2 / n,
-        -g2 * i3,
-        g1 * i3,
-    ]
-    eps_rate = sum(a * b for a, b in zip(de, dgh, strict=True))
-    kap_rate = sum(a * b for a, b in zip(dk, dgh, strict=True))
-    damp = np.stack([a1 * (ea * eps_rate * de[k] + ei * kap_rate * dk[k]) for k in range(4)])
-    return elastic + damp.reshape(elastic.shape)
-
-
-class KelvinVoigtAncfSystem(AncfSystem):
-    """beambench's ``corot`` FE (:class:`sim.models.fe_ancf.AncfSystem`) with strain-rate damping
-    ``a1 K_mat v`` (Exudyn's cable law) in place of Eq. 28's ``a1 K_T v``; ``a0 M v`` kept."""
-
-    def _force(self, gh: Any, dgh: Any, extra_axes: int) -> Any:
-        shape = (slice(None),) + (None,) * extra_axes
-        return _kelvin_voigt_force(gh, dgh, self.fe.ea_p[shape], self.fe.ei_p[shape], self.a1)
-
-
 def simulate_fe_kelvin_voigt(
     beam: BeamProperties,
     drive: Drive,
@@ -403,37 +368,25 @@ def simulate_fe_kelvin_voigt(
     atol: float = 1e-9,
     method: str = "BDF",
 ) -> SimResult:
-    """beambench's ``corot`` FE with Exudyn's damping law (:class:`KelvinVoigtAncfSystem`);
-    returns the tip only (stations clamp and tip), ``wall_time_s`` the integration."""
+    """beambench's ``corot`` FE with Exudyn's damping law (``damping_law="material"`` of
+    :func:`sim.models.fe.simulate_fe`); returns the tip only (stations clamp and tip),
+    ``wall_time_s`` the integration."""
     beam = _check_beam(beam, n_elements)
-    t = np.asarray(t_eval_s, dtype=float)
-    system = KelvinVoigtAncfSystem(beam, n_elements, drive, a0_per_s, a1_s)
-    traj = integrate(
-        system.rhs,
-        system.jac,
-        t,
-        system.initial_state(),
+    res = simulate_fe(
+        beam,
+        drive,
+        t_eval_s,
+        n_elements=n_elements,
+        a0_per_s=a0_per_s,
+        a1_s=a1_s,
+        n_stations=2,
         rtol=rtol,
         atol=atol,
         method=method,
-        rhs_stages=system.rhs_stages,
-        jac_stages=system.jac_stages,
-        rhs_jac_stages=system.rhs_jac_stages,
+        damping_law="material",
     )
-    r, _ = system.sample(traj.y, np.array([0.0, beam.length_m]))
-    lat = r[..., 1]
-    lon = r[..., 0] - (beam.hub_offset_m + np.array([0.0, beam.length_m]))[None, :]
-    return SimResult(
-        time_s=t,
-        hub_angle_rad=np.asarray(drive.angle(t), dtype=float),
-        tip_lateral_m=lat[:, -1].copy(),
-        tip_longitudinal_m=lon[:, -1].copy(),
-        stations_m=np.array([0.0, beam.length_m]),
-        station_lateral_m=lat,
-        station_longitudinal_m=lon,
-        gauge_positions_m=np.zeros(0),
-        strain=np.zeros((t.size, 0)),
+    return replace(
+        res,
         model="fe-corot-kelvin-voigt",
-        wall_time_s=traj.wall_time_s,
         settings={"n_elements": n_elements, "rtol": rtol, "atol": atol, "method": method},
     )

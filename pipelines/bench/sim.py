@@ -112,7 +112,7 @@ def _candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult
         )  # fmt: skip
 
     def auto(tol: float) -> Callable[[Scene], SimResult]:
-        from sim.model_choice import simulate_auto
+        from sim.models.model_choice import simulate_auto
 
         return lambda s: simulate_auto(
             s.beam, s.drive, s.t_s, tol=tol, a0_per_s=s.damping[0], a1_s=s.damping[1]

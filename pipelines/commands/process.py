@@ -9,6 +9,7 @@ from pathlib import Path
 from pipelines.commands._common import add_rig_argument
 from pipelines.commands._viewer_args import add_viewer_arguments
 from pipelines.errors import BeambenchError
+from sim.models.registry import MODELS
 
 HELP = "measure frames, reconstruct, simulate and compare a run; write RESULTS.nc"
 
@@ -26,7 +27,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--model",
-        choices=("auto", "rigid", "modal", "fe"),
+        choices=MODELS,
         default="auto",
         help="simulation model driven by the measured hub angle",
     )

@@ -20,7 +20,8 @@ from pipelines.results.sim_dataset import (
 from pipelines.rig import Rig
 from sim import scenes
 from sim.beam import BeamProperties
-from sim.solvers.linear_radau import SolverError
+from sim.errors import ModelNotAvailable
+from sim.models.registry import MODELS
 from sim.statics import table2_comparison
 
 HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-body, modes, linkage)"
@@ -43,7 +44,7 @@ def _finite(text: str) -> float:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", choices=SCENES)
     add_rig_argument(p)
-    p.add_argument("--model", choices=scenes.MODELS, default="auto")
+    p.add_argument("--model", choices=MODELS, default="auto")
     p.add_argument("--out", metavar="FILE.nc", default=None)
     p.add_argument(
         "--drive",
@@ -279,10 +280,8 @@ def run(args: argparse.Namespace) -> int:
                     f", log decrement {ex['log_decrement']:.5f}, zeta {ex['damping_ratio']:.5f}, "
                     f"identified a0 = a1 = {ex['identified_a0_per_s']:.6g}"
                 )
-    except scenes.ModelNotAvailable as exc:
+    except ModelNotAvailable as exc:
         raise BeambenchError(f"--model {args.model}: {exc}") from None
-    except SolverError as exc:
-        raise BeambenchError(f"{args.scene}: the solver failed: {exc}") from None
     except ValueError as exc:
         raise BeambenchError(f"{args.scene}: {exc}") from None
     if args.out is not None:

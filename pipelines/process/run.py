@@ -155,26 +155,19 @@ def simulate_measured(
     good = np.isfinite(rocker_rad)
     drive = TraceDrive(t_s[good], rocker_rad[good])
     beam = BeamProperties.from_config(rig.beam)
-    kwargs: dict[str, Any] = {
-        "a0_per_s": rig.damping.a0_per_s,
-        "a1_s": rig.damping.a1_s,
-        "gauge_positions_m": rig.gauges.positions_m,
-    }
-    if model == "modal":
-        from sim.models.modal import simulate_modal
+    from sim.models.registry import simulate
 
-        return simulate_modal(beam, drive, t_s, n_modes=4, **kwargs)
-    if model == "fe":
-        from sim.models.fe import simulate_fe
-
-        return simulate_fe(beam, drive, t_s, **kwargs)
-    if model == "rigid":
-        from sim.models.rigid import simulate_rigid
-
-        return simulate_rigid(beam, drive, t_s, gauge_positions_m=rig.gauges.positions_m)
-    from sim.model_choice import simulate_auto
-
-    return simulate_auto(beam, drive, t_s, tol=tol, **kwargs)
+    return simulate(
+        model,
+        beam,
+        drive,
+        t_s,
+        a0_per_s=rig.damping.a0_per_s,
+        a1_s=rig.damping.a1_s,
+        gauge_positions_m=rig.gauges.positions_m,
+        n_modes=4,
+        tol=tol if model == "auto" else None,  # modal and fe at their own tolerances
+    )
 
 
 def _model_side(

@@ -10,10 +10,11 @@ Eqs. 35-36) with the exact centrifugal, Coriolis and Euler loads of the prescrib
   coordinates with cubic Hermite interpolation and the exact elastica strain energy.
 
 Proportional damping (Eq. 28), ``(a0 M + a1 K_T)`` times the elastic deformation rates,
-never acts on the rigid motion of the hub. Integration: Radau IIA or BDF with an exact
-Jacobian (scipy's, or for ``corot`` :mod:`sim.solvers.radau`: full Newton with each stage's
-Jacobian, the fast one at moderate tolerances), so the axial modes and the overdamped
-bending modes of the paper's damping (a1 = 0.1 s) cost little.
+never acts on the rigid motion of the hub; ``corot`` also has Kelvin-Voigt (strain-rate)
+damping, ``damping_law="material"``, the law of Exudyn's cable. Integration: Radau IIA or
+BDF with an exact Jacobian (scipy's, or for ``corot`` :mod:`sim.solvers.radau`: full Newton
+with each stage's Jacobian, the fast one at moderate tolerances), so the axial modes and the
+overdamped bending modes of the paper's damping (a1 = 0.1 s) cost little.
 """
 
 from __future__ import annotations
@@ -27,8 +28,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sim.beam import BeamProperties
+from sim.checks import (
+    check_beam,
+    check_choice,
+    check_gauges,
+    check_int,
+    check_non_negative,
+    check_positive,
+    check_simulation_inputs,
+)
 from sim.drives import Drive
-from sim.models.fe_ancf import AncfBeam, AncfSystem
+from sim.errors import SimInputError, StaticSolveError
+from sim.models.fe_ancf import DAMPING_LAWS, AncfBeam, AncfSystem
 from sim.models.fe_flxdyn import FlxdynBeam, FlxdynSystem
 from sim.result import SimResult
 from sim.solvers.integrate import integrate
@@ -50,64 +61,6 @@ class _System(Protocol):
     def sample(self, y_hist: FloatArray, s_m: FloatArray) -> tuple[FloatArray, FloatArray]: ...
 
 
-class StaticSolveError(RuntimeError):
-    """Newton's method did not converge for a static load step."""
-
-
-def _check_beam(beam: object) -> BeamProperties:
-    if not isinstance(beam, BeamProperties):
-        raise TypeError(f"beam must be a sim.beam.BeamProperties, got {type(beam).__name__}")
-    return beam
-
-
-def _check_int(name: str, value: object, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-    if not lo <= int(value) <= hi:
-        raise ValueError(f"{name} must be in [{lo}, {hi}], got {value}")
-    return int(value)
-
-
-def _check_nonneg(name: str, value: float) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} must be a non-negative finite number, got {value!r}")
-    return v
-
-
-def _check_positive(name: str, value: float) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return v
-
-
-def _check_gauges(gauge_positions_m: ArrayLike, length_m: float) -> FloatArray:
-    g = np.atleast_1d(np.asarray(gauge_positions_m, dtype=float)).ravel()
-    if g.size and (not np.all(np.isfinite(g)) or g.min() < 0.0 or g.max() > length_m):
-        raise ValueError(
-            f"gauge_positions_m must lie on the beam, in [0, {length_m}] m, got {g.tolist()}"
-        )
-    return g
-
-
-def _check_times(t_eval_s: ArrayLike) -> FloatArray:
-    t = np.asarray(t_eval_s, dtype=float)
-    if t.ndim != 1 or t.size < 1:
-        raise ValueError(f"t_eval_s must be a 1-D array with at least one time, got {t.shape}")
-    if not np.all(np.isfinite(t)):
-        raise ValueError("t_eval_s must be finite")
-    if t.size > 1 and np.any(np.diff(t) <= 0.0):
-        raise ValueError("t_eval_s must be strictly increasing")
-    return t
-
-
-def _check_formulation(formulation: str) -> str:
-    if formulation not in FORMULATIONS:
-        raise ValueError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
-    return formulation
-
-
 def _deflections(
     system: Any, y_hist: FloatArray, beam: BeamProperties, stations: FloatArray, gauges: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -124,10 +77,16 @@ def _deflections(
 
 
 def _make_system(
-    formulation: str, beam: BeamProperties, n_elements: int, drive: Drive, a0: float, a1: float
+    formulation: str,
+    beam: BeamProperties,
+    n_elements: int,
+    drive: Drive,
+    a0: float,
+    a1: float,
+    damping_law: str,
 ) -> _System:
     if formulation == "corot":
-        return AncfSystem(beam, n_elements, drive, a0, a1)
+        return AncfSystem(beam, n_elements, drive, a0, a1, damping_law)
     return FlxdynSystem(beam, n_elements, drive, a0, a1)
 
 
@@ -146,6 +105,7 @@ def simulate_fe(
     atol: float = 1e-9,
     initial_state: ArrayLike | None = None,
     method: str = "auto",
+    damping_law: str = "paper",
 ) -> SimResult:
     """Simulate the beam clamped to a hub whose rotation ``drive`` prescribes.
 
@@ -172,10 +132,13 @@ def simulate_fe(
         a1 EA acts along the rotating centre line, so a Jacobian frozen over a step (scipy's
         Radau and BDF) makes Newton fail and the step collapse; with atol = rtol (1e-4 to
         1e-6) it is 8-10x faster than BDF at equal error on the paper's scene (what
-        :mod:`sim.model_choice` and the speed table use). At tight
+        :mod:`sim.models.model_choice` and the speed table use). At tight
         tolerances with a tiny atol (references, rtol 1e-6 and below) it is slower, so
         "auto" stays with scipy: BDF when a1 > 0, Radau when ``a1_s == 0`` (undamped stiff
         axial modes make high-order BDF crawl: it is not A-stable).
+    damping_law : the ``a1`` term: ``"paper"`` (default), Eq. 28's ``a1 K_T v``, or
+        ``"material"`` (``corot`` only), Kelvin-Voigt strain-rate damping ``a1 K_mat v``,
+        Exudyn's cable law (:class:`sim.models.fe_ancf.AncfSystem` says what differs).
 
     Returns
     -------
@@ -189,27 +152,28 @@ def simulate_fe(
     sim.solvers.integrate.IntegrationError
         if the integrator fails (never a silently wrong answer).
     """
-    beam = _check_beam(beam)
-    if not isinstance(drive, Drive):
-        raise TypeError("drive must provide angle(t), rate(t) and accel(t) (sim.drives.Drive)")
-    t = _check_times(t_eval_s)
-    ne = _check_int("n_elements", n_elements, 1, 200)
-    form = _check_formulation(formulation)
-    a0 = _check_nonneg("a0_per_s", a0_per_s)
-    a1 = _check_nonneg("a1_s", a1_s)
-    gauges = _check_gauges(gauge_positions_m, beam.length_m)
-    ns = _check_int("n_stations", n_stations, 2, 10_000)
-    rt = _check_positive("rtol", rtol)
-    at = _check_positive("atol", atol)
-    system = _make_system(form, beam, ne, drive, a0, a1)
+    t, gauges, stations = check_simulation_inputs(
+        beam, drive, t_eval_s, gauge_positions_m, n_stations, max_stations=10_000
+    )
+    ne = check_int("n_elements", n_elements, 1, 200)
+    form = check_choice("formulation", formulation, FORMULATIONS)
+    a0 = check_non_negative("a0_per_s", a0_per_s)
+    a1 = check_non_negative("a1_s", a1_s)
+    rt = check_positive("rtol", rtol)
+    at = check_positive("atol", atol)
+    law = check_choice("damping_law", damping_law, DAMPING_LAWS)
+    if law != "paper" and form != "corot":
+        raise SimInputError("damping_law", f"{law!r} needs formulation 'corot', got {form!r}")
+    system = _make_system(form, beam, ne, drive, a0, a1, law)
     if initial_state is None:
         y0 = system.initial_state()
     else:
         y0 = np.asarray(initial_state, dtype=float).ravel()
         if y0.shape != (system.n_state,) or not np.all(np.isfinite(y0)):
-            raise ValueError(
-                f"initial_state must be {system.n_state} finite numbers for formulation "
-                f"{form!r} with {ne} elements, got shape {np.shape(initial_state)}"
+            raise SimInputError(
+                "initial_state",
+                f"must be {system.n_state} finite numbers for formulation {form!r} with "
+                f"{ne} elements, got shape {np.shape(initial_state)}",
             )
     jac_stages = getattr(system, "jac_stages", None)
     if method == "auto":
@@ -226,14 +190,13 @@ def simulate_fe(
         jac_stages=jac_stages,
         rhs_jac_stages=getattr(system, "rhs_jac_stages", None),
     )
-    stations = np.linspace(0.0, beam.length_m, ns)
     lat, lon, strain = _deflections(system, traj.y, beam, stations, gauges)
     settings: dict[str, Any] = {
         "formulation": form,
         "n_elements": ne,
         "rtol": rt,
         "atol": at,
-        "damping": {"a0_per_s": a0, "a1_s": a1},
+        "damping": {"a0_per_s": a0, "a1_s": a1, "law": law},
         "method": method,
         "n_rhs": traj.n_rhs,
         "n_jac": traj.n_jac,
@@ -279,14 +242,14 @@ def _static_newton(
                     step *= 0.5
             x = x + step * dx
             if not np.all(np.isfinite(x)):
-                raise StaticSolveError(f"non-finite state at load step {k}/{n_steps}")
+                raise StaticSolveError("non-finite state", k, n_steps)
             if step == 1.0 and (
                 dx_max <= 1e-10 * size or (dx_max <= 1e-7 * size and dx_max >= 0.5 * dx_prev)
             ):
                 break  # converged, or stagnating at round-off
             dx_prev = dx_max if step == 1.0 else math.inf
         else:
-            raise StaticSolveError(f"Newton did not converge at load step {k}/{n_steps}")
+            raise StaticSolveError("Newton did not converge", k, n_steps)
     return x
 
 
@@ -312,12 +275,12 @@ def solve_static_fe(
         ``tip_longitudinal_m`` (negative: the tip is pulled in), station deflections and
         gauge strains; ``wall_time_s`` is the solve alone.
     """
-    beam = _check_beam(beam)
-    p = _check_nonneg("tip_force_n", tip_force_n)
-    ne = _check_int("n_elements", n_elements, 1, 400)
-    form = _check_formulation(formulation)
-    gauges = _check_gauges(gauge_positions_m, beam.length_m)
-    ns = _check_int("n_stations", n_stations, 2, 10_000)
+    beam = check_beam(beam)
+    p = check_non_negative("tip_force_n", tip_force_n)
+    ne = check_int("n_elements", n_elements, 1, 400)
+    form = check_choice("formulation", formulation, FORMULATIONS)
+    gauges = check_gauges(gauge_positions_m, beam.length_m)
+    ns = check_int("n_stations", n_stations, 2, 10_000)
     # rough size of the rotation decides the number of load steps
     theta = p * beam.length_m**2 / (2.0 * beam.bending_stiffness_n_m2)
     n_steps = max(1, math.ceil(theta / 0.05))

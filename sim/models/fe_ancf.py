@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim.beam import BeamProperties
+from sim.checks import check_choice
 
 FloatArray = NDArray[np.float64]
 
@@ -35,6 +36,8 @@ N_GAUSS = 4  # bending: 4-point Gauss (exact for the linear part)
 N_GAUSS_AXIAL = 2  # axial: reduced 2-point Gauss, against membrane locking
 _CS_STEP = 1e-30  # complex step: no cancellation, so any tiny step is exact to rounding
 _J2 = np.array([[0.0, -1.0], [1.0, 0.0]])  # rotation by +90 degrees (k x)
+#: the ``a1`` damping of :class:`AncfSystem`: Eq. 28's ``a1 K_T v`` or strain-rate only
+DAMPING_LAWS = ("paper", "material")
 
 
 def hermite(xi: FloatArray, h: float) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -160,6 +163,33 @@ def _damped_force_fast(
             b1a * g1 + b1b * d1,
         ]
     return np.concatenate(parts).reshape(4 * n.shape[0], *n.shape[1:])
+
+
+def _material_damped_force(
+    gh: Any, dgh: Any, ea: Any, ei: Any, a1: float
+) -> Any:  # complex arrays too (complex-step derivatives)
+    """Energy gradient plus ``a1`` times the material (strain-rate) part of its rate,
+    ``a1 (EA eps' grad eps + EI kappa' grad kappa)``: Kelvin-Voigt damping, the
+    ``"material"`` damping law; (4, P, ...) -> (4 P, ...)."""
+    elastic = _damped_force_fast(gh, dgh, ea, ei, 0.0)
+    if a1 == 0.0:
+        return elastic
+    g1, g2, h1, h2 = gh
+    n = g1 * g1 + g2 * g2
+    isq = 1.0 / np.sqrt(n)
+    i3 = isq * isq * isq
+    c = g1 * h2 - g2 * h1
+    de = [g1 * isq, g2 * isq, 0.0 * g1, 0.0 * g1]  # grad eps, eps = |g| - 1
+    dk = [  # grad kappa, kappa = c / |g|^3
+        h2 * i3 - 3.0 * c * i3 * g1 / n,
+        -h1 * i3 - 3.0 * c * i3 * g2 / n,
+        -g2 * i3,
+        g1 * i3,
+    ]
+    eps_rate = sum(a * b for a, b in zip(de, dgh, strict=True))
+    kap_rate = sum(a * b for a, b in zip(dk, dgh, strict=True))
+    damp = np.stack([a1 * (ea * eps_rate * de[k] + ei * kap_rate * dk[k]) for k in range(4)])
+    return elastic + damp.reshape(elastic.shape)
 
 
 @dataclass
@@ -333,11 +363,25 @@ class AncfSystem:
     where ``M_J = int rhoA S^T J S`` carries the Coriolis and Euler terms, ``-Omega^2 M e``
     the centrifugal load. Damping acts on ``v``, the rates relative to the hub frame, so a
     beam moving rigidly with the hub feels none.
+
+    ``damping_law`` chooses the ``a1`` term: ``"paper"`` (default) is Eq. 28's ``a1 K_T v``
+    with the full tangent stiffness; ``"material"`` is Kelvin-Voigt (strain-rate) damping,
+    ``a1 K_mat v = a1 int (EA eps' grad eps + EI kappa' grad kappa)``, the law of Exudyn's
+    ANCF cable. The two differ by the geometric part ``a1 (N d2eps + M d2kappa) v``: a force
+    from the current axial force and bending moment times the rotation rate of the centre
+    line relative to the hub, which is not a strain rate. ``a0 M v`` is the same in both.
     """
 
     def __init__(
-        self, beam: BeamProperties, n_elements: int, drive: object, a0: float, a1: float
+        self,
+        beam: BeamProperties,
+        n_elements: int,
+        drive: object,
+        a0: float,
+        a1: float,
+        damping_law: str = "paper",
     ) -> None:
+        self.damping_law = check_choice("damping_law", damping_law, DAMPING_LAWS)
         self.fe = AncfBeam(beam, n_elements)
         self.drive = drive
         self.a0 = a0
@@ -406,9 +450,12 @@ class AncfSystem:
         return self.gh0 + self.bf @ d
 
     def _force(self, gh: Any, dgh: Any, extra_axes: int) -> Any:
-        """Generalized internal force at the Gauss points (elastic + Eq. 28's ``a1 K_T``
-        rate), real or complex; ``gh``, ``dgh`` are (4, P) followed by ``extra_axes``
-        axes. Subclasses change the damping law here and only here."""
+        """Generalized internal force at the Gauss points (elastic + the damping law's
+        ``a1`` rate term), real or complex; ``gh``, ``dgh`` are (4, P) followed by
+        ``extra_axes`` axes. The damping law acts here and only here."""
+        if self.damping_law == "material":
+            axes = (slice(None),) + (None,) * extra_axes
+            return _material_damped_force(gh, dgh, self.fe.ea_p[axes], self.fe.ei_p[axes], self.a1)
         shape = gh.shape[1:]
         stiff = self._stiffness.get(shape)
         if stiff is None:  # per-point EA, EI spread over the extra axes, flattened
@@ -473,7 +520,7 @@ class AncfSystem:
         return self._rhs_from_force(om, al, d, v, self._force(gh, dgh, 1))
 
     def _force_derivatives(self, gh: FloatArray, dgh: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """The damped force (gradient + a1 K_T rate) and its pointwise derivatives by
+        """The damped force (:meth:`_force`) and its pointwise derivatives by
         complex step: ``gh``, ``dgh`` (4, P, k) -> force (4 P, k) and derivatives
         (4, P, k, 4) w.r.t. ``gh``, then (with damping) (4, P, k, 4) w.r.t. ``dgh``,
         stacked on the last axis.

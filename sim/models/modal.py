@@ -48,8 +48,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sim.beam import BeamProperties
+from sim.checks import check_non_negative, check_positive, check_simulation_inputs
 from sim.drives import Drive
-from sim.models.rigid import check_non_negative, check_simulation_inputs
+from sim.errors import SimInputError
 from sim.modes import ModalIntegrals, gauss_points, modal_integrals, mode_shapes
 from sim.result import SimResult
 from sim.solvers.linear_radau import solve_ltv
@@ -85,7 +86,7 @@ class ModalModel:
         damping_geometric: bool = True,
     ) -> ModalModel:
         if isinstance(n_modes, bool) or not isinstance(n_modes, int | np.integer) or n_modes < 1:
-            raise ValueError(f"n_modes must be a positive integer, got {n_modes!r}")
+            raise SimInputError("n_modes", f"must be a positive integer, got {n_modes!r}")
         integrals = modal_integrals(
             beam.length_m,
             beam.hub_offset_m,
@@ -202,11 +203,10 @@ def integrate_modal(
         if value is not None:
             v = np.asarray(value, dtype=float).reshape(-1)
             if v.shape != (n,) or not np.all(np.isfinite(v)):
-                raise ValueError(f"{name} must be {n} finite modal amplitudes (m), got {value!r}")
+                raise SimInputError(name, f"must be {n} finite modal amplitudes (m), got {value!r}")
             x0[sl] = v
-    for name, value in (("rtol", rtol), ("atol", atol)):
-        if not np.isfinite(value) or value <= 0.0:
-            raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    check_positive("rtol", rtol)
+    check_positive("atol", atol)
     a0, a1, f1 = model.first_order_parts()
 
     def coefficients(ts: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -39,12 +39,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sim.beam import BeamProperties
+from sim.checks import check_simulation_inputs
 from sim.drives import Drive
+from sim.errors import SolverError
 from sim.models.modal import ModalModel, modal_result
-from sim.models.rigid import check_simulation_inputs
 from sim.modes import gauss_points, mode_shapes
 from sim.result import SimResult
-from sim.solvers.linear_radau import RADAU_C, SolverError, radau_grid, solve_ltv
+from sim.solvers.linear_radau import radau_grid, solve_ltv
+from sim.solvers.radau_iia import C
 
 FloatArray = NDArray[np.float64]
 
@@ -229,7 +231,7 @@ def integrate_modal_nonlinear(
     )
     grid, out_index = grid_info
     n_steps = grid.size - 1
-    stage_t = (grid[:-1, None] + np.diff(grid)[:, None] * RADAU_C[None, :]).ravel()
+    stage_t = (grid[:-1, None] + np.diff(grid)[:, None] * C[None, :]).ravel()
     rate = np.asarray(drive.rate(stage_t), dtype=float)
     acc = np.asarray(drive.accel(stage_t), dtype=float)
     minv = np.linalg.inv(model.integrals.mass)
@@ -254,8 +256,9 @@ def integrate_modal_nonlinear(
             break
     else:
         raise SolverError(
-            f"the nonlinear modal iteration did not converge in {max_iterations} passes "
-            f"(last change {change:.3g} m); the deflection is too large for this model"
+            "nonlinear modal iteration",
+            f"no convergence in {max_iterations} passes (last change {change:.3g} m); "
+            "the deflection is too large for this model",
         )
     out = states[out_index]
     info = {

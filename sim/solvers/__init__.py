@@ -1,2 +1,7 @@
-"""Time integrators: ``radau5`` (adaptive Radau IIA, order 5), the batched fixed-step
-Radau IIA for linear time-varying systems, and ``integrate``, the one entry point the models use."""
+"""Time integrators.
+
+- ``radau``: ``radau5``, adaptive Radau IIA (order 5) for the finite-element beams;
+- ``linear_radau``: batched Radau IIA for linear time-varying systems (the modal models);
+- ``radau_iia``: the one coefficient table both use;
+- ``integrate``: the entry point the finite elements use (``radau5`` or scipy's, checked).
+"""

@@ -2,7 +2,8 @@
 every step, :mod:`sim.solvers.radau`) or a checked wrapper around scipy's Radau, BDF and LSODA, all
 with an analytic Jacobian.
 
-A solver failure raises :class:`IntegrationError`; there is no silently wrong answer.
+A solver failure raises :class:`sim.errors.IntegrationError`; there is no silently wrong
+answer.
 """
 
 from __future__ import annotations
@@ -15,18 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from sim.errors import IntegrationError, SimInputError
+from sim.solvers.radau import radau5
+
 FloatArray = NDArray[np.float64]
 
 METHODS = ("radau5", "Radau", "BDF", "LSODA")
-
-
-class IntegrationError(RuntimeError):
-    """The time integrator failed (step size underflow, non-finite state, ...)."""
-
-    def __init__(self, method: str, t_s: float, message: str) -> None:
-        super().__init__(f"{method} integration failed at t = {t_s:.6g} s: {message}")
-        self.method = method
-        self.t_s = t_s
 
 
 @dataclass(frozen=True)
@@ -75,11 +70,11 @@ def integrate(
 
     Raises
     ------
-    IntegrationError
+    sim.errors.IntegrationError
         if the solver does not reach the last time or the state stops being finite.
     """
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise SimInputError("method", f"must be one of {', '.join(METHODS)}, got {method!r}")
     t = np.asarray(t_eval_s, dtype=float)
     y_start = np.asarray(y0, dtype=float)
     if t.size == 1:
@@ -130,8 +125,6 @@ def _radau5(
     jac_stages: Callable[[FloatArray, FloatArray], FloatArray] | None,
     rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None,
 ) -> Trajectory:
-    from sim.solvers.radau import radau5
-
     def pointwise(ts: FloatArray, ys: FloatArray) -> FloatArray:
         return np.stack([rhs(float(tk), yk) for tk, yk in zip(ts, ys, strict=True)])
 

@@ -6,41 +6,31 @@ whose matrices depend only on the known coefficients at the three stage times. A
 P_k, g_k of a run are formed by one batched linear solve (numpy), and the only sequential
 work is the affine recursion. Steps land on the output times; the step size is refined
 (halved) until two successive solutions agree to the requested tolerance, so the error
-control is on the global error at the outputs, not just the local error per step.
+control is on the global error at the outputs, not just the local error per step. The
+coefficients are :mod:`sim.solvers.radau_iia`'s, shared with :mod:`sim.solvers.radau`.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from sim.errors import SimInputError, SolverError
+from sim.solvers.radau_iia import A, C
+
 FloatArray = NDArray[np.float64]
 
 logger = logging.getLogger(__name__)
-
-_S6 = math.sqrt(6.0)
-RADAU_C = np.array([(4.0 - _S6) / 10.0, (4.0 + _S6) / 10.0, 1.0])
-RADAU_A = np.array(
-    [
-        [(88.0 - 7.0 * _S6) / 360.0, (296.0 - 169.0 * _S6) / 1800.0, (-2.0 + 3.0 * _S6) / 225.0],
-        [(296.0 + 169.0 * _S6) / 1800.0, (88.0 + 7.0 * _S6) / 360.0, (-2.0 - 3.0 * _S6) / 225.0],
-        [(16.0 - _S6) / 36.0, (16.0 + _S6) / 36.0, 1.0 / 9.0],
-    ]
-)
 
 #: coefficients(t) -> (A, f): A of shape (K, m, m), f of shape (K, m) for K times.
 Coefficients = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
 
 _CHUNK = 4096
-
-
-class SolverError(RuntimeError):
-    """The integration did not reach the requested tolerance (never a silent wrong answer)."""
+SOLVER = "linear Radau IIA"  # how errors name this solver
 
 
 def substeps(t_out: FloatArray, h_max: float) -> NDArray[np.intp]:
@@ -91,19 +81,19 @@ def radau_grid(
         if cache is not None and c0 in cache:
             inv, zx, f_vec = cache[c0]
         else:
-            ts = starts[c0:c1, None] + hs[:, None] * RADAU_C[None, :]  # (k, 3)
+            ts = starts[c0:c1, None] + hs[:, None] * C[None, :]  # (k, 3)
             a_mat, f_vec = coefficients(ts.ravel())
             a_mat = a_mat.reshape(k, 3, m, m)
             f_vec = f_vec.reshape(k, 3, m)
             big = np.zeros((k, 3 * m, 3 * m))
             for i in range(3):
                 for j in range(3):
-                    block = -(hs * RADAU_A[i, j])[:, None, None] * a_mat[:, j]
+                    block = -(hs * A[i, j])[:, None, None] * a_mat[:, j]
                     if i == j:
                         block = block + eye
                     big[:, i * m : (i + 1) * m, j * m : (j + 1) * m] = block
         forcing = f_vec if extra_forcing is None else f_vec + extra_forcing[c0:c1]
-        col = (hs[:, None, None] * np.einsum("ij,kjm->kim", RADAU_A, forcing)).reshape(k, 3 * m)
+        col = (hs[:, None, None] * np.einsum("ij,kjm->kim", A, forcing)).reshape(k, 3 * m)
         if cache is None:
             # one solve for the state columns and the forcing column together
             full = np.linalg.solve(
@@ -128,7 +118,7 @@ def radau_grid(
             y = np.einsum("kij,kj->ki", zx, states[c0:c1]) + zf
             stages_out[c0:c1] = y.reshape(k, 3, m)
     if not np.all(np.isfinite(states)):
-        raise SolverError("the Radau IIA recursion produced non-finite values")
+        raise SolverError(SOLVER, "the recursion produced non-finite values")
     return states
 
 
@@ -167,11 +157,11 @@ def solve_ltv(
     ``grid_out``, if given, receives the accepted step grid and the output indices in it.
     """
     if t_out.ndim != 1 or t_out.size < 1:
-        raise ValueError("t_eval_s must be a non-empty 1-D array")
+        raise SimInputError("t_eval_s", "must be a non-empty 1-D array")
     if t_out.size == 1:
         return x0[None, :].copy(), 0.0, 0.0
     if np.any(np.diff(t_out) <= 0.0):
-        raise ValueError("t_eval_s must be strictly increasing")
+        raise SimInputError("t_eval_s", "must be strictly increasing")
     n_sub = substeps(t_out, h_initial)
     grid, out_index = step_grid(t_out, n_sub)
     fine = radau_grid(coefficients, grid, x0)
@@ -184,7 +174,7 @@ def solve_ltv(
         est = float(np.max(np.abs((fine[common] - coarse) @ error_weights))) / 15.0
         scale = float(np.max(np.abs(fine @ error_weights)))
         h = float(np.max(np.diff(grid)))
-        logger.debug("ltv: h = %.3g s, error estimate %.3g, scale %.3g", h, est, scale)
+        logger.debug("linear Radau: h = %.3g s, error estimate %.3g, scale %.3g", h, est, scale)
         if est <= atol + rtol * scale:
             if grid_out is not None:
                 grid_out.append(grid)
@@ -197,6 +187,7 @@ def solve_ltv(
         common = np.arange(0, grid.size, 2)
         fine = radau_grid(coefficients, grid, x0)
     raise SolverError(
+        SOLVER,
         f"no convergence to rtol={rtol:g}, atol={atol:g} after {max_refinements} step halvings "
-        f"(estimated error {est:.3g}, scale {scale:.3g})"
+        f"(estimated error {est:.3g}, scale {scale:.3g})",
     )

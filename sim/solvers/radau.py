@@ -24,7 +24,9 @@ stiff, *nonlinear* beams with Kelvin-Voigt damping:
 
 Together 2.3x faster than the full Newton with a fresh Jacobian per iteration that this
 module used before (0.063 -> 0.027 s per simulated second, 2 elements, same error).
-A failure raises :class:`sim.solvers.integrate.IntegrationError`, never a silently wrong answer.
+The method's coefficients are :mod:`sim.solvers.radau_iia`'s, shared with the batched linear
+integrator. A failure raises :class:`sim.errors.IntegrationError`, never a silently wrong
+answer.
 """
 
 from __future__ import annotations
@@ -37,6 +39,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack, lu_factor, lu_solve
 
+from sim.errors import IntegrationError, SimInputError
+from sim.solvers.radau_iia import MU_COMPLEX, MU_REAL, TI, TI_COMPLEX, TI_REAL, A, C, E, P, T
+
 FloatArray = NDArray[np.float64]
 
 RhsStages = Callable[[FloatArray, FloatArray], FloatArray]  # (k,), (k, n) -> (k, n)
@@ -45,48 +50,6 @@ JacobianStages = Callable[[FloatArray, FloatArray], FloatArray]  # (k,), (k, n) 
 # (k,), (k, n) -> (k, n), (k, n, n): f and its Jacobians at the same points, one evaluation
 RhsJacStages = Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
 
-_S6 = 6**0.5
-C = np.array([(4 - _S6) / 10, (4 + _S6) / 10, 1.0])
-E = np.array([-13 - 7 * _S6, -13 + 7 * _S6, -1.0]) / 3
-MU_REAL = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
-MU_COMPLEX = 3 + 0.5 * (3 ** (1 / 3) - 3 ** (2 / 3)) - 0.5j * (3 ** (5 / 6) + 3 ** (7 / 6))
-T = np.array(
-    [
-        [0.09443876248897524, -0.14125529502095421, 0.03002919410514742],
-        [0.25021312296533332, 0.20412935229379994, -0.38294211275726192],
-        [1.0, 1.0, 0.0],
-    ]
-)
-TI = np.array(
-    [
-        [4.17871859155190428, 0.32768282076106237, 0.52337644549944951],
-        [-4.17871859155190428, -0.32768282076106237, 0.47662355450055044],
-        [0.50287263494578682, -2.57192694985560522, 0.59603920482822492],
-    ]
-)
-TI_REAL = TI[0]
-TI_COMPLEX = TI[1] + 1j * TI[2]
-P = np.array(
-    [
-        [13 / 3 + 7 * _S6 / 3, -23 / 3 - 22 * _S6 / 3, 10 / 3 + 5 * _S6],
-        [13 / 3 - 7 * _S6 / 3, -23 / 3 + 22 * _S6 / 3, 10 / 3 - 5 * _S6],
-        [1 / 3, -8 / 3, 10 / 3],
-    ]
-)
-
-
-def _collocation_matrix() -> FloatArray:
-    """Radau IIA coefficients a_ij = int_0^{c_i} l_j(s) ds (l_j: Lagrange basis on C)."""
-    a = np.empty((3, 3))
-    for j in range(3):
-        others = [C[m] for m in range(3) if m != j]
-        coef = np.poly(others) / np.prod([C[j] - o for o in others])
-        prim = np.polyint(coef)
-        a[:, j] = np.polyval(prim, C) - np.polyval(prim, 0.0)
-    return a
-
-
-A = _collocation_matrix()
 NEWTON_MAXITER = 7
 #: contraction above which the stage Jacobians are re-evaluated at the current iterate
 #: (at 0.5 a Newton iteration still gains a bit per iteration; slower costs more iterations
@@ -145,6 +108,7 @@ def radau5(
     max_steps: int = 2_000_000,
     jac_stages: JacobianStages | None = None,
     rhs_jac_stages: RhsJacStages | None = None,
+    fixed_step_s: float | None = None,
 ) -> tuple[FloatArray, RadauStats, float]:
     """Integrate ``dy/dt = f(t, y)`` and return ``y`` at ``t_eval_s`` (T, n).
 
@@ -163,6 +127,11 @@ def radau5(
     rhs_jac_stages : ``(rhs_stages, jac_stages)`` at the same points in one call (cheaper
         where the Jacobians come with the function, e.g. complex-step); implies the Newton
         of ``jac_stages``.
+    fixed_step_s : if given, every step is this long (the last one shortened to end at
+        ``t_eval_s[-1]``) and the step-size controller is off: no error estimate, no
+        rejection, so ``rtol`` and ``atol`` only scale Newton's stopping test. For
+        convergence studies (the order of the method shows at the step ends); excludes
+        ``first_step_s``; a Newton iteration that fails to converge raises.
 
     Returns
     -------
@@ -170,11 +139,9 @@ def radau5(
 
     Raises
     ------
-    sim.solvers.integrate.IntegrationError
+    sim.errors.IntegrationError
         if the step size underflows, Newton keeps failing or the state stops being finite.
     """
-    from sim.solvers.integrate import IntegrationError
-
     if rhs_jac_stages is None and jac_stages is not None:
         js_only = jac_stages
 
@@ -182,6 +149,15 @@ def radau5(
             return rhs_stages(ts, ys), js_only(ts, ys)
 
     full = rhs_jac_stages is not None
+    fixed = fixed_step_s is not None
+    if fixed_step_s is not None:
+        if not (math.isfinite(fixed_step_s) and fixed_step_s > 0.0):
+            raise SimInputError(
+                "fixed_step_s", f"must be a positive finite number, got {fixed_step_s!r}"
+            )
+        if first_step_s is not None:
+            raise SimInputError("first_step_s", "must be None with a fixed_step_s")
+        first_step_s = fixed_step_s
     t_out = np.asarray(t_eval_s, dtype=float)
     y = np.array(y0, dtype=float)
     n = y.size
@@ -248,12 +224,18 @@ def radau5(
                 lu_r = _lu(MU_REAL / h * eye - js[0])
                 stats.n_lu += 1
             if not converged:
+                if fixed:
+                    problem = f"Newton does not converge at the fixed step {h:.3g} s"
+                    raise IntegrationError("radau5", t, problem)
                 h *= 0.5
                 rejected = True
                 stats.n_rejected += 1
                 stats.n_newton_failed += 1
                 continue
             y_new = y + z[-1]
+            if fixed:
+                err = 0.0  # no error control at a fixed step
+                break
             ze = (z.T @ E) / h
             error = _lu_solve(lu_r, f + ze)
             scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
@@ -276,7 +258,10 @@ def radau5(
                 stats.n_rejected += 1
                 continue
             break
-        factor = min(MAX_FACTOR, safety * _predict_factor(h, h_old, err, err_old))
+        if fixed:
+            factor = 1.0
+        else:
+            factor = min(MAX_FACTOR, safety * _predict_factor(h, h_old, err, err_old))
         if rejected:
             factor = min(1.0, factor)  # no growth right after a rejection (Hairer's RADAU5)
         q = z.T @ P  # (n, 3): y(t + x h) = y + q [x, x^2, x^3]

@@ -7,11 +7,15 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pytest
 import xarray as xr
 
 from pipelines.cli import main
+from sim.drives import SinusoidDrive
+from sim.models.fe_ancf import AncfBeam
 
 
 def test_reciprocating_writes_the_contract_variables(tmp_path: Path) -> None:
@@ -108,3 +112,44 @@ def test_failed_run_does_not_clobber_an_existing_file(tmp_path: Path) -> None:
     rc = main(["sim", "static", "--mass", "-1", "--out", str(out)])
     assert rc == 2
     assert out.read_bytes() == b"precious"
+
+
+def _one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def test_a_failing_fe_integration_is_one_error_line(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the hub rate stops being finite at 20 ms: the integrator's own check refuses it
+    def rate(self: SinusoidDrive, t_s: Any) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        return np.where(t < 0.02, self.amplitude_rad * self.omega_rad_s, np.nan)
+
+    monkeypatch.setattr(SinusoidDrive, "rate", rate)
+    rc = main(["sim", "reciprocating", "--model", "fe", "--duration", "0.05"])
+    assert rc == 2
+    line = _one_error_line(capsys)
+    assert "integration failed at t = " in line and "not finite" in line, line
+
+
+def test_a_failing_static_fe_solve_is_one_error_line(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # a tangent 1000 times too stiff: Newton's steps are 1000 times too short and its 100
+    # iterations do not reach the first load step's equilibrium
+    exact_tangent = AncfBeam.tangent
+
+    def stiff_tangent(self: AncfBeam, e_full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        force, k = exact_tangent(self, e_full)
+        return force, 1e3 * k
+
+    monkeypatch.setattr(AncfBeam, "tangent", stiff_tangent)
+    rc = main(["sim", "static", "--model", "fe", "--mass", "0.149"])
+    assert rc == 2
+    line = _one_error_line(capsys)
+    assert line.startswith("error: static solve: Newton did not converge at load step 1/"), line

@@ -14,11 +14,12 @@ from scipy.optimize import brentq
 
 from sim.beam import BeamProperties, spin_up_beam
 from sim.config import BeamConfig
-from sim.drives import SinusoidDrive, SpinUpDrive
+from sim.drives import FixedDrive, SinusoidDrive, SpinUpDrive
+from sim.errors import IntegrationError, SimInputError
 from sim.models.fe import simulate_fe, solve_static_fe
 from sim.models.fe_ancf import AncfBeam, AncfSystem
 from sim.models.fe_flxdyn import FlxdynSystem, element_stiffness_6x6
-from sim.solvers.integrate import IntegrationError
+from sim.models.modal import simulate_modal
 
 LAMBDA = np.array([1.87510407, 4.69409113, 7.85475744])
 G_N_KG = 9.80665
@@ -311,7 +312,6 @@ def test_reciprocating_formulations_agree_as_their_damping_predicts(
     the stiffening carried by the rotations *between* elements (a kinematic effect) is not
     damped, and with many elements FLXDYN tends to damping with the elastic K alone. With
     a1 omega ~ 0.5 at the drive frequency that is a ~1.2 % shift of the tip."""
-    modal = pytest.importorskip("sim.models.modal")
     t = np.linspace(0.0, 2.6, 261)
     drive = SinusoidDrive(0.7669, 4.970)
     kw: dict[str, Any] = {"a0_per_s": 0.0, "a1_s": 0.1, "rtol": 1e-8, "atol": 1e-11}
@@ -323,8 +323,8 @@ def test_reciprocating_formulations_agree_as_their_damping_predicts(
     def err(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.max(np.abs(a - b)) / amp)
 
-    m_kt = modal.simulate_modal(rig_beam, drive, t, n_modes=6, **kw)
-    m_k = modal.simulate_modal(rig_beam, drive, t, n_modes=6, damping_geometric=False, **kw)
+    m_kt = simulate_modal(rig_beam, drive, t, n_modes=6, **kw)
+    m_k = simulate_modal(rig_beam, drive, t, n_modes=6, damping_geometric=False, **kw)
     assert 0.008 < err(corot.tip_lateral_m, flx.tip_lateral_m) < 0.02
     assert err(flx.tip_lateral_m, m_k.tip_lateral_m) < 2e-3
     # what is left between the exact and the linear modal model: geometric nonlinearity
@@ -366,6 +366,10 @@ def test_bad_input_is_refused(rig_beam: BeamProperties) -> None:
         solve_static_fe(rig_beam, float("nan"))
     with pytest.raises(ValueError, match="initial_state"):
         simulate_fe(rig_beam, drive, t, initial_state=np.zeros(3))
+    with pytest.raises(SimInputError, match="damping_law must be one of paper, material"):
+        simulate_fe(rig_beam, drive, t, damping_law="materail")
+    with pytest.raises(SimInputError, match="damping_law 'material' needs formulation 'corot'"):
+        simulate_fe(rig_beam, drive, t, formulation="flxdyn", damping_law="material")
 
 
 def test_solver_failure_is_an_error(rig_beam: BeamProperties) -> None:
@@ -395,16 +399,26 @@ def test_axial_force_is_smooth_to_rounding_for_tight_references() -> None:
     assert res.settings["n_rhs"] < 20_000
 
 
-@pytest.mark.parametrize(("n_elements", "a1_s"), [(1, 0.1), (3, 0.1), (3, 0.0), (7, 0.1)])
+@pytest.mark.parametrize(
+    ("n_elements", "a1_s", "damping_law"),
+    [
+        (1, 0.1, "paper"),
+        (3, 0.1, "paper"),
+        (3, 0.0, "paper"),
+        (7, 0.1, "paper"),
+        (3, 0.1, "material"),
+    ],
+)
 def test_stage_jacobians_match_central_differences(
-    rig_beam: BeamProperties, n_elements: int, a1_s: float
+    rig_beam: BeamProperties, n_elements: int, a1_s: float, damping_law: str
 ) -> None:
     # the exact Jacobian (complex-step pointwise derivatives, element-wise assembly) of the
     # damped rotating-frame equations at a bent, stretched, moving state, against central
     # differences: their error is truncation (~1e-7 of a column's largest entry; columns
     # span 4 to 1e11) plus rounding of the right-hand side, eps |f| / step (|f| is large:
     # the axial forces), so each entry gets that bound, with a factor 10
-    system = AncfSystem(rig_beam, n_elements, SinusoidDrive(0.7669, 4.970), 0.1, a1_s)
+    drive = SinusoidDrive(0.7669, 4.970)
+    system = AncfSystem(rig_beam, n_elements, drive, 0.1, a1_s, damping_law)
     rng = np.random.default_rng(7)
     ts = np.array([0.2, 0.45, 1.1])
     ys = np.concatenate(
@@ -418,7 +432,7 @@ def test_stage_jacobians_match_central_differences(
         fd = np.empty((system.n_state, system.n_state))
         bound = np.empty_like(fd)
         for j in range(system.n_state):
-            # the rates enter linearly (Coriolis, a0, a1 K_T v): a large step is exact there
+            # the rates enter linearly (Coriolis, a0, a1 K v): a large step is exact there
             step = 1e-7 * max(1.0, abs(ys[k, j])) if j < system.nf else 1.0
             yp, ym = ys[k].copy(), ys[k].copy()
             yp[j] += step
@@ -427,3 +441,47 @@ def test_stage_jacobians_match_central_differences(
             fd[:, j] = (fp - fm) / (2 * step)
             bound[:, j] = 1e-7 * np.abs(fd[:, j]).max() + eps * np.abs(fp).max() / step
         assert np.all(np.abs(jac[k] - fd) < 10 * bound)
+
+
+def _damping_and_stiffness(
+    beam: BeamProperties, damping_law: str, axial_strain: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The damping matrix / a1 and the tangent stiffness K_T of the free coordinates, from the
+    exact Jacobian at rest (hub still, v = 0), for the straight beam stretched uniformly by
+    ``axial_strain`` along its axis."""
+    a1 = 0.1
+    system = AncfSystem(beam, 3, FixedDrive(), 0.0, a1, damping_law)
+    fe, nf = system.fe, system.nf
+    stretched = fe.e_ref.copy()
+    stretched[0::4] = beam.hub_offset_m + (1.0 + axial_strain) * (
+        fe.e_ref[0::4] - beam.hub_offset_m
+    )
+    stretched[2::4] *= 1.0 + axial_strain
+    d = (stretched - fe.e_ref)[fe.free]
+    jac = system.jac(0.0, np.concatenate([d, np.zeros(nf)]))
+    mass = fe.mass[np.ix_(fe.free, fe.free)]
+    return -mass @ jac[nf:, nf:] / a1, -mass @ jac[nf:, :nf]
+
+
+def test_damping_laws_paper_is_a1_kt_and_material_drops_the_geometric_part(
+    rig_beam: BeamProperties,
+) -> None:
+    # Eq. 28 damps with the full tangent stiffness, so a compressed beam (axial force far
+    # beyond buckling) gets a damping matrix with a negative eigenvalue: the geometric
+    # part N d2eps v pumps energy in. Kelvin-Voigt damping only dissipates strain rates:
+    # EA eps' grad eps + EI kappa' grad kappa is symmetric positive semidefinite at any
+    # state. On the unstressed beam the geometric part vanishes and the laws agree.
+    for strain in (0.0, 1e-3, -1e-3):
+        paper, k_t = _damping_and_stiffness(rig_beam, "paper", strain)
+        material, _ = _damping_and_stiffness(rig_beam, "material", strain)
+        scale = np.abs(k_t).max()
+        np.testing.assert_allclose(paper, k_t, rtol=0.0, atol=1e-14 * scale)
+        np.testing.assert_allclose(material, material.T, rtol=0.0, atol=1e-14 * scale)
+        assert np.linalg.eigvalsh(material).min() > -1e-12 * scale
+        gap = np.abs(material - paper).max() / scale
+        if strain == 0.0:
+            assert gap < 1e-14
+        else:
+            assert 0.5e-3 < gap < 2e-3  # the geometric stiffness, ~ |strain| of EA's part
+    paper, _ = _damping_and_stiffness(rig_beam, "paper", -1e-3)
+    assert np.linalg.eigvalsh(0.5 * (paper + paper.T)).min() < -1e-4 * np.abs(paper).max()

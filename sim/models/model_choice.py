@@ -1,4 +1,5 @@
-"""``auto``: the cheapest beam model whose estimated error for the scene is below ``tol``.
+"""``auto``: the cheapest beam model whose estimated error for the scene is below ``tol``
+(the ``auto`` entry of :mod:`sim.models.registry`).
 
 The estimate is a sum of parts, each relative to the largest tip deflection delta (of a
 quick modal run):
@@ -53,6 +54,7 @@ from numpy.typing import ArrayLike
 
 from sim.beam import BeamProperties
 from sim.drives import Drive
+from sim.errors import SimInputError
 from sim.models.fe import simulate_fe
 from sim.models.modal import simulate_modal
 from sim.result import SimResult
@@ -136,7 +138,7 @@ def simulate_auto(
     """
     t_tol = float(tol)
     if not math.isfinite(t_tol) or not 0.0 < t_tol < 0.5:
-        raise ValueError(f"tol must be in (0, 0.5), got {tol!r}")
+        raise SimInputError("tol", f"must be in (0, 0.5), got {tol!r}")
     common: dict[str, Any] = {
         "a0_per_s": a0_per_s,
         "a1_s": a1_s,

@@ -9,8 +9,8 @@ import pytest
 from sim.beam import BeamProperties, spin_up_beam
 from sim.config import BeamConfig
 from sim.drives import SinusoidDrive, SpinUpDrive
-from sim.model_choice import simulate_auto
 from sim.models.fe import simulate_fe
+from sim.models.model_choice import simulate_auto
 
 
 def _rel_err(a: np.ndarray, ref: np.ndarray) -> float:

@@ -1,0 +1,42 @@
+"""The one Radau IIA coefficient table (``sim.solvers.radau_iia``) against its definitions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sim.solvers.radau_iia import MU_COMPLEX, MU_REAL, TI, A, C, T
+
+S6 = math.sqrt(6.0)
+CLOSED_FORM_A = np.array(  # Hairer and Wanner, Table IV.5.6
+    [
+        [(88 - 7 * S6) / 360, (296 - 169 * S6) / 1800, (-2 + 3 * S6) / 225],
+        [(296 + 169 * S6) / 1800, (88 + 7 * S6) / 360, (-2 - 3 * S6) / 225],
+        [(16 - S6) / 36, (16 + S6) / 36, 1 / 9],
+    ]
+)
+
+
+def test_matrix_is_the_closed_form_and_collocation_conditions_hold() -> None:
+    np.testing.assert_allclose(A, CLOSED_FORM_A, rtol=0.0, atol=1e-15)
+    # C(3): sum_j a_ij c_j^(k-1) = c_i^k / k, k = 1..3 (collocation at the three nodes)
+    for k in (1, 2, 3):
+        np.testing.assert_allclose(A @ C ** (k - 1), C**k / k, rtol=0.0, atol=1e-15)
+    # stiffly accurate: the weights are the last row, a quadrature of order 2s - 1 = 5
+    for k in range(1, 6):
+        assert A[2] @ C ** (k - 1) == pytest.approx(1.0 / k, abs=1e-15)
+
+
+def test_transformation_block_diagonalises_the_inverse_matrix() -> None:
+    np.testing.assert_allclose(TI @ T, np.eye(3), atol=1e-14)
+    block = TI @ np.linalg.inv(A) @ T
+    expected = np.array(
+        [
+            [MU_REAL, 0.0, 0.0],
+            [0.0, MU_COMPLEX.real, -MU_COMPLEX.imag],
+            [0.0, MU_COMPLEX.imag, MU_COMPLEX.real],
+        ]
+    )
+    np.testing.assert_allclose(block, expected, atol=1e-12)
