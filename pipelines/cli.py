@@ -2,8 +2,8 @@
 
 Each module in ``pipelines.commands`` provides ``HELP`` (one line), ``add_arguments``
 and ``run(args) -> int``. Known errors (``BeambenchError``, and the root of each
-package's tree: ``DaqError``, ``SimError``) become one ``error: ...`` line on stderr and
-exit status 2; a traceback is a bug.
+package's tree: ``SimError``, ``VisionError``, ``DaqError``) become one ``error: ...`` line
+on stderr and exit status 2; a traceback is a bug.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from pipelines import __version__
 from pipelines.blas_threads import limit_blas_threads
 from pipelines.errors import BeambenchError
 from sim.errors import SimError
+from vision.errors import VisionError
 
 COMMANDS = (
     "demo",
@@ -73,13 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     limit_blas_threads()
     try:
         return int(args._run(args) or 0)
-    except BeambenchError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except DaqError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except SimError as exc:
+    except (BeambenchError, SimError, VisionError, DaqError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

@@ -183,7 +183,6 @@ def test_realtime_capture_keeps_up_without_drops(tmp_path: Path) -> None:
 def test_hardware_backend_without_nidaqmx_suggests_the_fake(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    pytest.importorskip("cv2")
     import importlib.util
 
     if importlib.util.find_spec("nidaqmx") is not None:

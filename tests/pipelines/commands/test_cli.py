@@ -6,7 +6,11 @@ from pathlib import Path
 
 import pytest
 
+from daq.errors import DeviceTimeoutError
 from pipelines.cli import COMMANDS, main
+from pipelines.errors import BeambenchError
+from sim.errors import IntegrationError
+from vision.errors import CalibrationError
 
 
 def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None:
@@ -60,3 +64,28 @@ def test_usage_mistake_is_one_error_line(capsys: pytest.CaptureFixture[str]) -> 
     assert info.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ")
+
+
+@pytest.mark.parametrize(
+    "error",
+    [
+        BeambenchError("run.mcap: no such file"),
+        IntegrationError("radau5", 1.25, "step size underflow"),
+        CalibrationError("the plane is mirrored", section="registration"),
+        DeviceTimeoutError("strain DAQ", 2.0),
+    ],
+    ids=["pipelines", "sim", "vision", "daq"],
+)
+def test_each_package_root_is_one_error_line_and_exit_2(
+    error: Exception, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Whatever package a known error comes from, the user sees one line, never a traceback."""
+    import pipelines.commands.info as info
+
+    def fail(args: object) -> int:
+        raise error
+
+    monkeypatch.setattr(info, "run", fail)
+    assert main(["info", "run.mcap"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: {error}\n"
