@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from vision.calibration import Calibration
 from vision.camera import check_intrinsics, distort_points_px, undistort_points_px
 from vision.config import RegistrationConfig
-from vision.edges import erf_edge
+from vision.edges import edge_moment, erf_edge
 from vision.errors import ParameterError, RegistrationError
 from vision.homography import (
     LineHomographyFit,
@@ -33,7 +33,7 @@ from vision.homography import (
     collineation_4pt,
     homography_from_lines,
 )
-from vision.sampling import bilinear, edge_moment
+from vision.sampling import bilinear
 
 
 def registration_plane_points_m(registration: RegistrationConfig) -> NDArray[np.float64]:

@@ -1,4 +1,5 @@
-"""Image sampling and 1-D sub-pixel edge location shared by the measurement methods."""
+"""Image sampling: bilinear interpolation at sub-pixel points (with a reusable plan) and a fast
+median, shared by the measurement steps. The edge estimators are in :mod:`vision.edges`."""
 
 from __future__ import annotations
 
@@ -78,49 +79,3 @@ class BilinearPlan:
         bottom = v10 + fx * (flat[i11] - v10.astype(np.float64))
         v = top + fy * (bottom - top)
         return np.asarray(v) if self.ok is None else np.where(self.ok, v, np.nan)
-
-
-def edge_moment(
-    diff: NDArray[np.float64], peak: NDArray[np.intp], half: int | NDArray[np.intp]
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """First moment of positive differences around ``peak`` in each row of ``diff``.
-
-    ``diff[i, k]`` is the step between samples k and k+1 (located at k + 0.5); ``half`` is
-    the window half-width (steps), one for all rows or one per row. Returns the sub-sample
-    edge position, the summed step (contrast) and the RMS spread (samples)."""
-    _n, m = diff.shape
-    halves = np.broadcast_to(np.asarray(half), peak.shape)
-    hmax = int(np.max(halves)) if halves.size else 0
-    offs = np.arange(-hmax, hmax + 1)
-    idx = peak[:, None] + offs[None, :]
-    valid = (idx >= 0) & (idx < m) & (np.abs(offs)[None, :] <= halves[:, None])
-    idx = np.clip(idx, 0, m - 1)
-    d = np.take_along_axis(diff, idx, axis=1)
-    d = np.where(valid & (d > 0), d, 0.0)
-    total = d.sum(axis=1)
-    pos = idx + 0.5
-    with np.errstate(invalid="ignore", divide="ignore"):
-        centre = (d * pos).sum(axis=1) / total
-        spread = np.sqrt(np.maximum((d * (pos - centre[:, None]) ** 2).sum(axis=1) / total, 0))
-    return centre, total, spread
-
-
-def edge_gauss3(diff: NDArray[np.float64], peak: NDArray[np.intp]) -> NDArray[np.float64]:
-    """Sub-sample edge position from a Gaussian through the three steps around ``peak``
-    (log-parabola vertex); NaN where a step is not positive. Positions as in
-    :func:`edge_moment` (step k at k + 0.5)."""
-    m = diff.shape[1]
-    p = np.clip(peak, 1, m - 2)
-    rows = np.arange(len(p))
-    a, b, c = diff[rows, p - 1], diff[rows, p], diff[rows, p + 1]
-    ok = (a > 0) & (b > 0) & (c > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        la, lb, lc = (
-            np.log(np.where(ok, a, 1.0)),
-            np.log(np.where(ok, b, 1.0)),
-            np.log(np.where(ok, c, 1.0)),
-        )
-        den = la - 2 * lb + lc
-        off = np.where(ok & (den < 0), 0.5 * (la - lc) / den, np.nan)
-    off = np.where(np.abs(off) <= 1.0, off, np.nan)
-    return np.asarray(p + 0.5 + off, dtype=np.float64)

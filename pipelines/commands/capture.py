@@ -6,7 +6,7 @@ import argparse
 import math
 from typing import Any
 
-from pipelines.commands._common import add_rig_argument, rig_from_args
+from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
 from pipelines.progress import Progress
 from pipelines.rig import Rig

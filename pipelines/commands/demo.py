@@ -12,7 +12,7 @@ import os
 import time
 from pathlib import Path
 
-from pipelines.commands._common import add_rig_argument, rig_from_args
+from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
 
 HELP = "synthetic bench end to end: capture, process, report"

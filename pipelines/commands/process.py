@@ -6,8 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
-from pipelines.commands._common import add_rig_argument
-from pipelines.commands._viewer_args import add_viewer_arguments
+from pipelines.commands._args import add_rig_argument, add_viewer_arguments
 from pipelines.errors import BeambenchError
 from sim.models.registry import MODELS
 

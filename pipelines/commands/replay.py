@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pipelines.commands._viewer_args import add_viewer_arguments
+from pipelines.commands._args import add_viewer_arguments
 from pipelines.errors import BeambenchError
 
 if TYPE_CHECKING:

@@ -9,7 +9,7 @@ import math
 import sys
 from typing import Any
 
-from pipelines.commands._common import add_rig_argument, rig_from_args
+from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
 from pipelines.results.sim_dataset import (
     check_output_path,
