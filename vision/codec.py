@@ -54,3 +54,32 @@ def encode(image: NDArray[np.uint8], encoding: str = "jpeg", quality: int = 90) 
     if not ok:
         raise EncodeError(encoding)
     return bytes(buf)
+
+
+_REDUCED = {2: cv2.IMREAD_REDUCED_GRAYSCALE_2, 4: cv2.IMREAD_REDUCED_GRAYSCALE_4}
+
+
+def preview(data: bytes, reduction: int, quality: int = 85) -> bytes:
+    """A reduced copy of an encoded image for display: 1/``reduction`` of its width and
+    height (2 or 4), re-encoded as JPEG at ``quality``.
+
+    JPEG is decoded straight at the reduced size (libjpeg's DCT scaling, a fraction of a
+    full decode); PNG is decoded and then averaged down. Pixel ``(x, y)`` of the preview
+    shows ``(reduction * (x + 0.5) - 0.5, ...)`` of the original.
+    """
+    if reduction not in _REDUCED:
+        raise ParameterError("reduction", f"must be 2 or 4, got {reduction!r}")
+    if not isinstance(data, bytes | bytearray | memoryview):
+        raise TypeError(f"data must be bytes, got {type(data).__name__}")
+    buf = np.frombuffer(bytes(data), dtype=np.uint8)
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    try:
+        img = cv2.imdecode(buf, _REDUCED[reduction]) if buf.size else None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+    if img is None:
+        raise DecodeError(buf.size)
+    if img.dtype != np.uint8:
+        img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
+    return encode(np.ascontiguousarray(img), "jpeg", quality)

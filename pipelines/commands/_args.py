@@ -26,3 +26,12 @@ def add_viewer_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--rrd", metavar="FILE.rrd", help="save the Rerun recording to a file")
     g.add_argument("--spawn", action="store_true", help="open a Rerun viewer")
     g.add_argument("--connect", metavar="URL", help="stream to a running Rerun viewer")
+    p.add_argument(
+        "--frame-reduction",
+        type=int,
+        choices=(1, 2, 4),
+        default=2,
+        metavar="N",
+        help="camera frames in the recording at 1/N of their size (default 2, so a run loads "
+        "in seconds; 1 keeps them at full resolution as logged)",
+    )

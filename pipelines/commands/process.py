@@ -99,7 +99,7 @@ def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace
     except ValueError as exc:
         raise BeambenchError(str(exc)) from None
     try:
-        stream_processed(processed, log_path, viewer)
+        stream_processed(processed, log_path, viewer, frame_reduction=args.frame_reduction)
     except BaseException:
         viewer.abort()
         raise

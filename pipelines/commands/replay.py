@@ -74,6 +74,7 @@ def replay_log(
     sleep: Callable[[float], None] = time.sleep,
     monotonic: Callable[[], float] = time.monotonic,
     progress: bool | None = None,
+    frame_reduction: int = 1,
 ) -> ReplaySummary:
     """Stream a run log into ``viewer``: the records of ``daq.replay``, in log-time order.
 
@@ -84,6 +85,7 @@ def replay_log(
     speed : replay at ``speed`` times real time; None sends everything at once.
     sleep, monotonic : the clock used for pacing (injectable for tests).
     progress : draw a progress bar (default: only on a terminal).
+    frame_reduction : frames at 1/N of their size (1: as logged).
 
     Raises
     ------
@@ -94,6 +96,7 @@ def replay_log(
     from daq.records import Frame, SampleBlock
     from daq.replay import BLOCK_SAMPLES, LogReplay
     from pipelines.progress import Progress
+    from pipelines.review.overlays import displayed_frame
 
     # unpaced, a sample block runs from one frame or event to the next (few chunks in the
     # recording); paced, 0.1 s blocks keep the view moving
@@ -109,7 +112,8 @@ def replay_log(
                 viewer.log_samples(t_s, record.rocker_angle_rad, record.strain)
             elif isinstance(record, Frame):
                 t = (record.t_ns - t0_ns) * 1e-9
-                viewer.log_frame(t, record.data, record.encoding, None, frame_index=record.sequence)
+                data, encoding, _ = displayed_frame(record.data, record.encoding, frame_reduction)
+                viewer.log_frame(t, data, encoding, None, frame_index=record.sequence)
                 n_frames += 1
                 bar.update(1)
             else:
@@ -139,11 +143,13 @@ def run(args: argparse.Namespace) -> int:
         if not rrd.parent.is_dir():
             raise BeambenchError(f"--rrd {rrd}: folder {rrd.parent} does not exist")
     try:
-        viewer = open_viewer(APP_ID, rrd_path=rrd, spawn=bool(args.spawn), connect_url=args.connect)
+        viewer = open_viewer(
+            APP_ID, rrd_path=rrd, spawn=bool(args.spawn), connect_url=args.connect, layout="raw"
+        )
     except (ValueError, OSError, RuntimeError) as exc:
         raise BeambenchError(f"cannot open the Rerun destination: {exc}") from None
     with viewer:
-        summary = replay_log(log_path, viewer, speed=speed)
+        summary = replay_log(log_path, viewer, speed=speed, frame_reduction=args.frame_reduction)
     where = str(rrd) if rrd is not None else (args.connect or "a spawned viewer")
     print(
         f"replayed {summary.samples} samples, {summary.frames} frames and {summary.events} "

@@ -12,11 +12,12 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from pipelines.results.compare import (
     ERROR_METRICS,
     STRAIN_METRICS,
+    sim_start_s,
     steady_state_mask,
     summarise_errors,
 )
@@ -26,6 +27,20 @@ from pipelines.results.schema import VARIABLES
 DISPLAY_UNITS = {"m": ("mm", 1e3), "1": ("µε", 1e6)}
 
 FloatArray = NDArray[np.float64]
+
+#: the camera overlay shows the measured - simulated beam this many times enlarged
+DIFFERENCE_GAIN = 20.0
+
+# What the camera overlays mean, for the summary document (Rerun's 2D views have no legend).
+OVERLAY_KEY = (
+    "| overlay | colour |\n|---|---|\n"
+    "| measured centre line | cyan |\n"
+    "| simulated beam (line and station dots) | green |\n"
+    "| measured - simulated, x{gain:g} about the simulated beam | pink |\n"
+    "| rigid beam on the measured hub angle | purple |\n"
+    "| hub axis | red |\n"
+    "| measured tip | yellow |"
+)
 
 
 def format_value(value: float, scale: float = 1.0) -> str:
@@ -70,7 +85,10 @@ class RunView:
     """The series of a results Dataset as a review shows them (SI units, NaN = no value).
 
     ``fig11`` holds (measured hub angle [rad], measured tip lateral [m], simulated hub
-    angle [rad], simulated tip lateral [m]): Fig. 11's points and loop.
+    angle [rad], simulated tip lateral [m]): Fig. 11's points and loop. The residuals are
+    measured minus simulated, NaN before the simulation has settled (what the error summary
+    compares); ``hub_at_frames_rad`` is the potentiometer angle at each frame time, the
+    abscissa of Fig. 11 and of its marker.
     """
 
     t_s: FloatArray
@@ -83,6 +101,10 @@ class RunView:
     tip_lateral_strain_m: FloatArray
     fig11: tuple[FloatArray, FloatArray, FloatArray, FloatArray]
     summary_markdown: str
+    strain_residual: FloatArray
+    tip_image_minus_sim_m: FloatArray
+    tip_strain_minus_sim_m: FloatArray
+    hub_at_frames_rad: FloatArray
 
 
 def run_view(ds: xr.Dataset) -> RunView:
@@ -113,16 +135,26 @@ def run_view(ds: xr.Dataset) -> RunView:
         f"# Simulation ({model}) against measurement",
         "",
         *error_table(summarise_errors(ds)),
+        "",
+        "## Camera overlays",
+        "",
+        OVERLAY_KEY.format(gain=DIFFERENCE_GAIN),
     ]
+    settled = t >= sim_start_s(ds)
+    settled_frames = ft >= sim_start_s(ds)
+    sim_at_frames = np.interp(ft, t, sim_tip, left=np.nan, right=np.nan) if ft.size else ft
+    strain = np.asarray(ds["strain"].values, dtype=np.float64)
+    sim_strain = np.asarray(ds["sim_strain"].values, dtype=np.float64)
+    tip_strain = np.asarray(ds["tip_lateral_strain"].values, dtype=np.float64)
     return RunView(
         t_s=t,
         rocker_angle_rad=rocker,
-        strain=np.asarray(ds["strain"].values, dtype=np.float64),
+        strain=strain,
         sim_tip_lateral_m=sim_tip,
-        sim_strain=np.asarray(ds["sim_strain"].values, dtype=np.float64),
+        sim_strain=sim_strain,
         frame_t_s=ft,
         tip_lateral_image_m=image,
-        tip_lateral_strain_m=np.asarray(ds["tip_lateral_strain"].values, dtype=np.float64),
+        tip_lateral_strain_m=tip_strain,
         fig11=(
             hub_at_frames[points],
             image[points],
@@ -130,4 +162,71 @@ def run_view(ds: xr.Dataset) -> RunView:
             sim_tip[steady],
         ),
         summary_markdown="\n".join(lines),
+        strain_residual=np.where(settled[:, None], strain - sim_strain, np.nan),
+        tip_image_minus_sim_m=np.where(settled_frames, image - sim_at_frames, np.nan),
+        tip_strain_minus_sim_m=np.where(settled, tip_strain - sim_tip, np.nan),
+        hub_at_frames_rad=np.asarray(hub_at_frames, dtype=np.float64),
+    )
+
+
+@dataclass(frozen=True)
+class Fig11Axes:
+    """Axes for Fig. 11 drawn in its 2D view (units: degrees across, -mm down).
+
+    ``lines``: the two axes and the zero-deflection line as line strips; ``tick_positions``
+    (T, 2) with ``tick_labels`` (T,): tick marks with their numbers; ``bounds``: (x_min,
+    x_max, y_min, y_max) of the whole figure, numbers included.
+    """
+
+    lines: list[FloatArray]
+    tick_positions: FloatArray
+    tick_labels: list[str]
+    bounds: tuple[float, float, float, float]
+
+
+def nice_step(span: float, target_ticks: int = 6) -> float:
+    """A tick spacing of 1, 2 or 5 times a power of ten giving about ``target_ticks``
+    ticks over ``span``."""
+    if not (math.isfinite(span) and span > 0):
+        return 1.0
+    raw = span / target_ticks
+    power = 10.0 ** math.floor(math.log10(raw))
+    return next(m * power for m in (1.0, 2.0, 5.0, 10.0) if m * power >= raw)
+
+
+def fig11_axes(lo: ArrayLike, hi: ArrayLike) -> Fig11Axes:
+    """Axes around Fig. 11's data box ``lo``..``hi`` (x: hub angle in degrees; y: -mm).
+
+    The hub-angle axis runs under the data, the deflection axis to its left; ticks carry
+    numbers in degrees and in mm (up = +lateral, so a tick at view y shows -y).
+    """
+    (x0, y0), (x1, y1) = np.asarray(lo, float), np.asarray(hi, float)
+    if x1 - x0 <= 0:
+        x0, x1 = x0 - 1.0, x1 + 1.0
+    if y1 - y0 <= 0:
+        y0, y1 = y0 - 1.0, y1 + 1.0
+    sx, sy = nice_step(x1 - x0), nice_step(y1 - y0)
+    pad_x, pad_y = 0.06 * (x1 - x0), 0.06 * (y1 - y0)
+    ax_y = y1 + pad_y  # the hub-angle axis, under the data (view y grows downwards)
+    ax_x = x0 - pad_x  # the deflection axis, left of the data
+    tick = 0.35 * min(pad_x, pad_y) + 1e-9
+    xs = np.arange(math.ceil(x0 / sx) * sx, x1 + 1e-9 * sx, sx)
+    ys = np.arange(math.ceil(y0 / sy) * sy, y1 + 1e-9 * sy, sy)
+    lines: list[FloatArray] = [
+        np.array([[ax_x, ax_y], [x1 + pad_x, ax_y]]),
+        np.array([[ax_x, ax_y], [ax_x, y0 - pad_y]]),
+    ]
+    if y0 < 0 < y1:
+        lines.append(np.array([[ax_x, 0.0], [x1 + pad_x, 0.0]]))
+    positions = [[x, ax_y + tick] for x in xs] + [[ax_x - tick, y] for y in ys]
+    labels = [f"{x:g}°" for x in xs] + [f"{-y + 0.0:g} mm" for y in ys]
+    lines += [np.array([[x, ax_y], [x, ax_y + tick]]) for x in xs]
+    lines += [np.array([[ax_x - tick, y], [ax_x, y]]) for y in ys]
+    label_room_x = 0.18 * (x1 - x0)
+    bounds = (ax_x - label_room_x, x1 + 2 * pad_x, y0 - 2 * pad_y, ax_y + 4 * pad_y)
+    return Fig11Axes(
+        lines=lines,
+        tick_positions=np.asarray(positions, dtype=np.float64).reshape(-1, 2),
+        tick_labels=labels,
+        bounds=bounds,
     )

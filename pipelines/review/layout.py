@@ -1,13 +1,26 @@
-"""The Rerun layout of a run review: colours, gauge entity names and the blueprint.
+"""The Rerun layouts of a review: colours, units, entity names and the blueprints.
 
-See ``pipelines.review.viewer`` for what is logged where.
+Two layouts, one per kind of recording (see ``pipelines.review.viewer`` for what is logged
+where):
+
+- ``processed``: the camera with the measurement and simulation overlays; the error summary
+  (with the colour key) and the event log; rocker angle; per gauge the measured and simulated
+  strain with their residual underneath; the tip deflection from images, strains and
+  simulation with its residuals; the paper's Fig. 11 with axes and a marker at the current time.
+- ``raw``: what a log holds before processing (``beambench replay``): the camera, the events,
+  the rocker angle and the measured strains, no empty panel.
+
+Series are shown in degrees, millimetres and microstrain; results files keep SI.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import rerun.blueprint as rrb
 
 N_GAUGES_IN_LAYOUT = 4  # the bench has four gauges; the blueprint shows one panel each
+LAYOUTS = ("processed", "raw")
 
 COLOUR_MEASURED = (31, 119, 180)
 COLOUR_STRAIN = (255, 127, 14)
@@ -16,6 +29,14 @@ COLOUR_HUB = (214, 39, 40)
 COLOUR_RIGID = (148, 103, 189)
 COLOUR_CENTRELINE = (23, 190, 207)
 COLOUR_TIP = (255, 221, 0)
+COLOUR_DIFFERENCE = (227, 119, 194)
+COLOUR_RESIDUAL = (127, 127, 127)
+COLOUR_AXES = (160, 160, 160)
+
+# display scale of each SI unit: value_display = scale * value_si
+DEG_PER_RAD = 57.29577951308232
+MM_PER_M = 1e3
+MICROSTRAIN = 1e6
 
 
 def gauge_entity(prefix: str, j: int) -> str:
@@ -23,43 +44,82 @@ def gauge_entity(prefix: str, j: int) -> str:
     return f"{prefix}/g{j + 1}"
 
 
-def build_blueprint(n_gauges: int = N_GAUGES_IN_LAYOUT) -> rrb.Blueprint:
-    """The layout: camera with overlays and the event log on the left; rocker angle,
-    one strain panel per gauge (measured and simulated) and tip deflection in the
-    middle; the Fig. 11 view on the right."""
-    strain_views = [
-        rrb.TimeSeriesView(
-            name=f"strain g{j + 1}",
-            origin="/",
-            contents=[gauge_entity("/daq/strain", j), gauge_entity("/sim/strain", j)],
+def _gauge_panel(j: int, raw: bool) -> rrb.View | rrb.Container:
+    strain = rrb.TimeSeriesView(
+        name=f"strain g{j + 1} (µε)",
+        origin="/",
+        contents=[gauge_entity("/daq/strain", j)]
+        if raw
+        else [gauge_entity("/daq/strain", j), gauge_entity("/sim/strain", j)],
+    )
+    if raw:
+        return strain
+    residual = rrb.TimeSeriesView(
+        name=f"g{j + 1} measured - sim (µε)",
+        origin="/",
+        contents=[gauge_entity("/residual/strain", j)],
+    )
+    return rrb.Vertical(strain, residual, row_shares=[2, 1])
+
+
+def build_blueprint(
+    kind: str = "processed",
+    n_gauges: int = N_GAUGES_IN_LAYOUT,
+    fig11_bounds: Sequence[float] | None = None,
+) -> rrb.Blueprint:
+    """The layout of a ``kind`` recording (``processed`` or ``raw``).
+
+    ``fig11_bounds`` = (x_min, x_max, y_min, y_max) of the Fig. 11 view in its own units
+    (hub angle in degrees across, -mm up), so the loop fills the view.
+    """
+    if kind not in LAYOUTS:
+        raise ValueError(f"kind must be one of {', '.join(LAYOUTS)}, got {kind!r}")
+    raw = kind == "raw"
+    rocker = rrb.TimeSeriesView(
+        name="rocker angle (deg)", origin="/", contents=["/daq/rocker_angle"]
+    )
+    strains = rrb.Grid(*(_gauge_panel(j, raw) for j in range(n_gauges)))
+    camera = rrb.Spatial2DView(name="camera", origin="/camera")
+    events = rrb.TextLogView(name="events", origin="/events")
+    if raw:
+        return rrb.Blueprint(
+            rrb.Horizontal(
+                rrb.Vertical(camera, events, row_shares=[3, 1]),
+                rrb.Vertical(rocker, strains, row_shares=[1, 3]),
+                column_shares=[1, 1],
+            ),
+            collapse_panels=True,
         )
-        for j in range(n_gauges)
-    ]
+    tip = rrb.Vertical(
+        rrb.TimeSeriesView(
+            name="tip lateral (mm)",
+            origin="/",
+            contents=["/tip_lateral/**", "/sim/tip_lateral"],
+        ),
+        rrb.TimeSeriesView(
+            name="tip lateral residual (mm)", origin="/", contents=["/residual/tip_lateral/**"]
+        ),
+        row_shares=[2, 1],
+    )
+    bounds = None
+    if fig11_bounds is not None:
+        x0, x1, y0, y1 = (float(v) for v in fig11_bounds)
+        bounds = rrb.VisualBounds2D(x_range=[x0, x1], y_range=[y0, y1])
+    fig11 = rrb.Spatial2DView(
+        name="Fig. 11: tip lateral (mm) vs hub angle (deg)",
+        origin="/fig11",
+        visual_bounds=bounds,
+    )
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(
-                rrb.Spatial2DView(name="camera", origin="/camera"),
-                rrb.Tabs(
-                    rrb.TextLogView(name="events", origin="/events"),
-                    rrb.TextDocumentView(name="error summary", origin="/summary"),
-                ),
-                row_shares=[3, 1],
+                camera,
+                rrb.TextDocumentView(name="error summary", origin="/summary"),
+                events,
+                row_shares=[5, 4, 1],
             ),
-            rrb.Vertical(
-                rrb.TimeSeriesView(
-                    name="rocker angle (rad)", origin="/", contents=["/daq/rocker_angle"]
-                ),
-                rrb.Grid(*strain_views),
-                rrb.TimeSeriesView(
-                    name="tip lateral (m)",
-                    origin="/",
-                    contents=["/tip_lateral/**", "/sim/tip_lateral"],
-                ),
-                row_shares=[1, 2, 1],
-            ),
-            rrb.Spatial2DView(
-                name="Fig. 11: tip lateral (mm, up +) vs hub angle (deg)", origin="/fig11"
-            ),
+            rrb.Vertical(rocker, strains, tip, row_shares=[1, 4, 3]),
+            fig11,
             column_shares=[2, 2, 1],
         ),
         collapse_panels=True,

@@ -15,8 +15,10 @@ from scipy.interpolate import CubicSpline
 
 from daq.log import iter_frames
 from pipelines.process.run import Processed
+from pipelines.review.display import DIFFERENCE_GAIN
 from pipelines.review.viewer import FrameOverlay, RunViewer
 from vision import FrameMeasurement
+from vision.codec import preview
 
 FloatArray = NDArray[np.float64]
 
@@ -35,36 +37,96 @@ def beam_points_plane(
     return np.asarray(clamp_m[None, :] + along + lateral_m[:, None] * normal[None, :], float)
 
 
+def magnified_difference(
+    centreline_m: FloatArray,
+    clamp_m: FloatArray,
+    hub_angle_rad: float,
+    sim_shape: tuple[FloatArray, FloatArray, FloatArray],
+    gain: float,
+) -> FloatArray:
+    """Plane points (K, 2): the simulated beam plus ``gain`` times the measured centre
+    line's lateral offset from it, at the centre line's points.
+
+    A 0.2 mm difference is a tenth of a pixel on the bench's framing; twenty times it is
+    visible. Points outside the simulated beam's span are dropped.
+    """
+    stations, lat, lon = sim_shape
+    axis = np.array([np.cos(hub_angle_rad), np.sin(hub_angle_rad)])
+    normal = np.array([-axis[1], axis[0]])
+    rel = np.asarray(centreline_m, float) - clamp_m[None, :]
+    along, across = rel @ axis, rel @ normal
+    sim_along = stations + lon
+    inside = (along >= sim_along[0]) & (along <= sim_along[-1])
+    along, across = along[inside], across[inside]
+    # a cubic through the stations: a straight line between them would itself differ from
+    # the simulated shape by tens of micrometres, magnified like a real difference
+    sim_across = CubicSpline(sim_along, lat)(along)
+    shown = sim_across + gain * (across - sim_across)
+    return np.asarray(clamp_m[None, :] + np.outer(along, axis) + np.outer(shown, normal), float)
+
+
 def frame_overlay(
     m: FrameMeasurement,
     to_px: Callable[[FloatArray], FloatArray],
     sim_shape: tuple[FloatArray, FloatArray, FloatArray] | None,
     beam_length_m: float,
+    *,
+    scale: float = 1.0,
 ) -> FrameOverlay:
-    """Overlay of one frame: what was measured, the rigid beam, the simulated shape."""
+    """Overlay of one frame: what was measured, the rigid beam, the simulated shape and
+    the measured - simulated difference magnified :data:`DIFFERENCE_GAIN` times.
+
+    ``scale`` maps the measurement's pixels onto the displayed image's (a preview at
+    1/``reduction`` of the size: pixel centres map as ``(p + 0.5) * scale - 0.5``).
+    """
     if not m.ok:
         return FrameOverlay(ok=False, reason=m.reason)
+
+    def shown(px: FloatArray) -> FloatArray:
+        return np.asarray((np.asarray(px, float) + 0.5) * scale - 0.5, float)
+
     clamp = np.asarray(m.clamp_plane_m, float)
     axis = np.array([np.cos(m.hub_angle_rad), np.sin(m.hub_angle_rad)])
     rigid = to_px(np.stack([clamp, clamp + beam_length_m * axis]))
-    sim_px = None
+    sim_px = difference_px = None
     if sim_shape is not None:
         stations, lat, lon = sim_shape
-        sim_px = to_px(beam_points_plane(clamp, m.hub_angle_rad, stations, lat, lon))
+        sim_px = shown(to_px(beam_points_plane(clamp, m.hub_angle_rad, stations, lat, lon)))
+        diff = magnified_difference(
+            m.centreline_plane_m, clamp, m.hub_angle_rad, sim_shape, DIFFERENCE_GAIN
+        )
+        if diff.shape[0] >= 2:
+            difference_px = shown(to_px(diff))
     tip_px = to_px(np.asarray(m.tip_plane_m, float)[None, :])[0]
     return FrameOverlay(
-        centreline_px=m.centreline_px,
-        hub_line_px=m.hub_line_px,
-        rigid_line_px=rigid,
+        centreline_px=shown(m.centreline_px),
+        hub_line_px=shown(m.hub_line_px),
+        rigid_line_px=shown(rigid),
         sim_beam_px=sim_px,
-        tip_px=tip_px,
+        difference_px=difference_px,
+        difference_gain=DIFFERENCE_GAIN,
+        tip_px=shown(tip_px),
         ok=True,
         reason="",
     )
 
 
-def stream_processed(processed: Processed, log_path: Path, viewer: RunViewer) -> None:
-    """Log a processed run: results series, every frame with its overlays, events."""
+def displayed_frame(data: bytes, encoding: str, reduction: int) -> tuple[bytes, str, float]:
+    """The frame as the recording shows it: as logged (``reduction`` 1) or a JPEG preview
+    at 1/``reduction`` of its size (:func:`vision.codec.preview`); with the pixel scale."""
+    if reduction == 1:
+        return data, encoding, 1.0
+    return preview(data, reduction), "jpeg", 1.0 / reduction
+
+
+def stream_processed(
+    processed: Processed, log_path: Path, viewer: RunViewer, *, frame_reduction: int = 2
+) -> None:
+    """Log a processed run: results series, every frame with its overlays, events.
+
+    Frames go in at 1/``frame_reduction`` of their size (2 by default: a 20 s run's
+    recording loads in seconds; 1 keeps the logged frames as they are).
+    """
     ds = processed.results
     viewer.log_results(ds)
     sim = processed.sim
@@ -83,6 +145,9 @@ def stream_processed(processed: Processed, log_path: Path, viewer: RunViewer) ->
         shape = None
         if np.isfinite(t) and sim.time_s[0] <= t <= sim.time_s[-1]:
             shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
-        overlay = frame_overlay(measured.measurement, processed.calibration.to_px, shape, length)
-        viewer.log_frame(t, frame.data, frame.encoding, overlay)
+        data, encoding, scale = displayed_frame(frame.data, frame.encoding, frame_reduction)
+        overlay = frame_overlay(
+            measured.measurement, processed.calibration.to_px, shape, length, scale=scale
+        )
+        viewer.log_frame(t, data, encoding, overlay)
     viewer.log_events(processed.events, t0_ns=t0_ns)

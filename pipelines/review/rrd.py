@@ -58,3 +58,51 @@ def rrd_entities(path: str | os.PathLike[str]) -> dict[str, RrdEntity]:
         )
         for k, v in acc.items()
     }
+
+
+@dataclass(frozen=True)
+class BlueprintView:
+    """One view of a recording's layout: its kind, origin and what it shows."""
+
+    kind: str  # "2D", "TimeSeries", "TextLog", "TextDocument", ...
+    origin: str
+    queries: tuple[str, ...]  # entity queries, ``$origin`` expanded
+
+    def shows(self, entity: str) -> bool:
+        """Whether the view includes ``entity`` (``/a/**`` matches ``/a`` and below)."""
+        for q in self.queries:
+            if q.endswith("/**"):
+                base = q[:-3].rstrip("/")
+                if entity == base or entity.startswith(base + "/") or base == "":
+                    return True
+            elif entity == q:
+                return True
+        return False
+
+
+def blueprint_views(path: str | os.PathLike[str], which: int = -1) -> list[BlueprintView]:
+    """The views of the ``which``-th layout (blueprint) stored in a ``.rrd`` file (the last,
+    i.e. the one a viewer shows, by default)."""
+    reader = RrdReader(Path(path))
+    stores = reader.blueprints()
+    if not stores:
+        return []
+    views: dict[str, dict[str, Any]] = {}
+    for chunk in reader.stream(store=stores[which]):
+        if not chunk.entity_path.startswith("/view/"):
+            continue
+        view = views.setdefault(chunk.entity_path.split("/")[2], {})
+        rb = chunk.to_record_batch()
+        for name, key in (
+            ("ViewBlueprint:class_identifier", "class"),
+            ("ViewBlueprint:space_origin", "origin"),
+            ("ViewContents:query", "query"),
+        ):
+            if name in rb.schema.names:
+                view[key] = rb.column(name).to_pylist()[-1]
+    out = []
+    for v in views.values():
+        origin = v["origin"][0]
+        queries = tuple(q.replace("$origin", origin) for q in v.get("query", []))
+        out.append(BlueprintView(kind=v["class"][0], origin=origin, queries=queries))
+    return out

@@ -10,17 +10,23 @@ processed run) for everything, and ``frame`` (sequence) for camera frames.
 
 Entity paths::
 
-    /daq/rocker_angle              potentiometer angle (rad)
-    /daq/strain/g1 .. gN           measured strain (m/m)
-    /sim/strain/g1 .. gN           simulated strain (m/m)
-    /sim/tip_lateral               simulated lateral tip deflection (m)
-    /tip_lateral/image             lateral tip deflection from the images (m, points)
-    /tip_lateral/strain            ... reconstructed from the strains (m)
+    /daq/rocker_angle              potentiometer angle (deg)
+    /daq/strain/g1 .. gN           measured strain (microstrain)
+    /sim/strain/g1 .. gN           simulated strain (microstrain)
+    /sim/tip_lateral               simulated lateral tip deflection (mm)
+    /tip_lateral/image             lateral tip deflection from the images (mm, points)
+    /tip_lateral/strain            ... reconstructed from the strains (mm)
+    /residual/strain/g1 .. gN      measured - simulated strain (microstrain)
+    /residual/tip_lateral/...      image - sim (points), strain - sim (line), mm
     /camera/image                  encoded JPEG/PNG frames (not decoded here)
     /camera/image/centreline ...   overlays in pixels, drawn on top of the image
-    /fig11/measured, /fig11/sim    Fig. 11: tip lateral (mm) against hub angle (deg)
+    /fig11/measured, /fig11/sim    Fig. 11: tip lateral (mm) against hub angle (deg),
+    /fig11/axes, /fig11/ticks      with its axes and numbers, and /fig11/now, the
+                                   current frame's point (on the time line)
     /events                        run events as a text log; /events/frames: failed frames
-    /summary                       the error summary (markdown)
+    /summary                       the error summary and the colour key (markdown)
+
+The methods take SI values (rad, m, m/m) and show degrees, millimetres and microstrain.
 """
 
 from __future__ import annotations
@@ -40,15 +46,22 @@ import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
 from pipelines.atomic import discard, temp_path_beside
-from pipelines.review.display import run_view
+from pipelines.review.display import fig11_axes, run_view
 from pipelines.review.layout import (
+    COLOUR_AXES,
     COLOUR_CENTRELINE,
+    COLOUR_DIFFERENCE,
     COLOUR_HUB,
     COLOUR_MEASURED,
+    COLOUR_RESIDUAL,
     COLOUR_RIGID,
     COLOUR_SIM,
     COLOUR_STRAIN,
     COLOUR_TIP,
+    DEG_PER_RAD,
+    LAYOUTS,
+    MICROSTRAIN,
+    MM_PER_M,
     build_blueprint,
     gauge_entity,
 )
@@ -103,6 +116,8 @@ class FrameOverlay:
     hub_line_px : (2, 2) end points of the hub line, or None.
     rigid_line_px : (2, 2) pivot and tip of the hypothetical rigid beam, or None.
     sim_beam_px : (S, 2) simulated beam shape projected into the image, or None.
+    difference_px : (K, 2) the measured centre line's offset from the simulated beam,
+        magnified ``difference_gain`` times about the simulated beam, or None.
     tip_px : (2,) detected tip, or None.
     ok : whether the frame gave a measurement.
     reason : why not, when ``ok`` is False.
@@ -112,6 +127,8 @@ class FrameOverlay:
     hub_line_px: ArrayLike | None = None
     rigid_line_px: ArrayLike | None = None
     sim_beam_px: ArrayLike | None = None
+    difference_px: ArrayLike | None = None
+    difference_gain: float = 20.0
     tip_px: ArrayLike | None = None
     ok: bool = True
     reason: str = ""
@@ -253,10 +270,16 @@ class RunViewer:
         eps = np.asarray(strain, dtype=np.float64)
         if eps.ndim != 2 or eps.shape[0] != t.size:
             raise ValueError(f"strain must have shape ({t.size}, G), got {eps.shape}")
-        self._send_scalars("/daq/rocker_angle", t, rocker, "rocker angle", COLOUR_MEASURED)
+        self._send_scalars(
+            "/daq/rocker_angle", t, DEG_PER_RAD * rocker, "rocker angle", COLOUR_MEASURED
+        )
         for j in range(eps.shape[1]):
             self._send_scalars(
-                gauge_entity("/daq/strain", j), t, eps[:, j], f"g{j + 1} measured", COLOUR_MEASURED
+                gauge_entity("/daq/strain", j),
+                t,
+                MICROSTRAIN * eps[:, j],
+                f"g{j + 1} measured",
+                COLOUR_MEASURED,
             )
 
     def log_sim(self, t_s: ArrayLike, tip_lateral_m: ArrayLike, strain: ArrayLike) -> None:
@@ -273,10 +296,14 @@ class RunViewer:
         eps = np.asarray(strain, dtype=np.float64)
         if eps.ndim != 2 or eps.shape[0] != t.size:
             raise ValueError(f"strain must have shape ({t.size}, G), got {eps.shape}")
-        self._send_scalars("/sim/tip_lateral", t, tip, "simulated", COLOUR_SIM)
+        self._send_scalars("/sim/tip_lateral", t, MM_PER_M * tip, "simulated", COLOUR_SIM)
         for j in range(eps.shape[1]):
             self._send_scalars(
-                gauge_entity("/sim/strain", j), t, eps[:, j], f"g{j + 1} simulated", COLOUR_SIM
+                gauge_entity("/sim/strain", j),
+                t,
+                MICROSTRAIN * eps[:, j],
+                f"g{j + 1} simulated",
+                COLOUR_SIM,
             )
 
     def log_frame(
@@ -323,23 +350,38 @@ class RunViewer:
             rec.reset_time()
 
     def _log_overlays(self, o: FrameOverlay, t_s: float) -> None:
+        # No labels on the lines (they piled up at the beam's middle): the summary document
+        # carries the colour key. The simulated beam is a thin line with a dot at each
+        # station, under the measured centre line; the difference between the two, magnified,
+        # is its own line, so what the comparison is about can be seen.
+        sim = _points("sim_beam_px", o.sim_beam_px)
         lines = {
-            "centreline": (_points("centreline_px", o.centreline_px), COLOUR_CENTRELINE, 2.0),
-            "hub_line": (_points("hub_line_px", o.hub_line_px, 2), COLOUR_HUB, 3.0),
-            "rigid_line": (_points("rigid_line_px", o.rigid_line_px, 2), COLOUR_RIGID, 2.0),
-            "sim_beam": (_points("sim_beam_px", o.sim_beam_px), COLOUR_SIM, 2.0),
+            "hub_line": (_points("hub_line_px", o.hub_line_px, 2), COLOUR_HUB, 3.0, 1.0),
+            "rigid_line": (_points("rigid_line_px", o.rigid_line_px, 2), COLOUR_RIGID, 1.5, 2.0),
+            "sim_beam": (sim, COLOUR_SIM, 1.0, 3.0),
+            "difference": (_points("difference_px", o.difference_px), COLOUR_DIFFERENCE, 1.5, 4.0),
+            "centreline": (_points("centreline_px", o.centreline_px), COLOUR_CENTRELINE, 2.0, 5.0),
         }
         rec = self.recording
-        for name, (pts, colour, radius) in lines.items():
+        for name, (pts, colour, radius, order) in lines.items():
             entity = f"/camera/image/{name}"
             if pts is None or pts.shape[0] < 2:
                 rec.log(entity, rr.Clear(recursive=False), strict=True)
             else:
                 rec.log(
                     entity,
-                    rr.LineStrips2D([pts], colors=[colour], radii=[radius], labels=[name]),
+                    rr.LineStrips2D([pts], colors=[colour], radii=[radius], draw_order=order),
                     strict=True,
                 )
+        entity = "/camera/image/sim_stations"
+        if sim is None or sim.shape[0] < 2:
+            rec.log(entity, rr.Clear(recursive=False), strict=True)
+        else:
+            rec.log(
+                entity,
+                rr.Points2D(sim, colors=[COLOUR_SIM], radii=[4.0], draw_order=3.5),
+                strict=True,
+            )
         entity = "/camera/image/tip"
         if o.tip_px is None:
             rec.log(entity, rr.Clear(recursive=False), strict=True)
@@ -347,7 +389,11 @@ class RunViewer:
             tip = np.asarray(o.tip_px, dtype=np.float64)
             if tip.shape != (2,):
                 raise ValueError(f"overlays.tip_px must have shape (2,), got {tip.shape}")
-            rec.log(entity, rr.Points2D([tip], colors=[COLOUR_TIP], radii=[8.0]), strict=True)
+            rec.log(
+                entity,
+                rr.Points2D([tip], colors=[COLOUR_TIP], radii=[8.0], draw_order=6.0),
+                strict=True,
+            )
         if not o.ok:
             rec.log(
                 "/events/frames",
@@ -375,11 +421,62 @@ class RunViewer:
         image = _series("tip_lateral_image_m", tip_lateral_image_m, ft.size)
         t = _series("t_s", t_s)
         strain = _series("tip_lateral_strain_m", tip_lateral_strain_m, t.size)
-        self._send_points_series("/tip_lateral/image", ft, image, "image", COLOUR_MEASURED)
-        self._send_scalars("/tip_lateral/strain", t, strain, "from strains", COLOUR_STRAIN)
+        self._send_points_series(
+            "/tip_lateral/image", ft, MM_PER_M * image, "image", COLOUR_MEASURED
+        )
+        self._send_scalars(
+            "/tip_lateral/strain", t, MM_PER_M * strain, "from strains", COLOUR_STRAIN
+        )
         if sim_tip_lateral_m is not None:
             sim = _series("sim_tip_lateral_m", sim_tip_lateral_m, t.size)
-            self._send_scalars("/sim/tip_lateral", t, sim, "simulated", COLOUR_SIM)
+            self._send_scalars("/sim/tip_lateral", t, MM_PER_M * sim, "simulated", COLOUR_SIM)
+
+    def log_residuals(
+        self,
+        t_s: ArrayLike,
+        strain_residual: ArrayLike,
+        frame_t_s: ArrayLike,
+        tip_image_minus_sim_m: ArrayLike,
+        tip_strain_minus_sim_m: ArrayLike,
+    ) -> None:
+        """What the comparison is about: measured minus simulated, under each pair.
+
+        Parameters
+        ----------
+        t_s : (N,) sample times [s]; strain_residual : (N, G) measured - simulated strain
+            [m/m]; tip_strain_minus_sim_m : (N,) strain-based - simulated tip [m].
+        frame_t_s : (F,) frame times [s]; tip_image_minus_sim_m : (F,) image - simulated
+            tip [m]. NaN = nothing to compare (before the simulation settles, failed frames).
+        """
+        t = _series("t_s", t_s)
+        eps = np.asarray(strain_residual, dtype=np.float64)
+        if eps.ndim != 2 or eps.shape[0] != t.size:
+            raise ValueError(f"strain_residual must have shape ({t.size}, G), got {eps.shape}")
+        ft = _series("frame_t_s", frame_t_s)
+        image = _series("tip_image_minus_sim_m", tip_image_minus_sim_m, ft.size)
+        strain_tip = _series("tip_strain_minus_sim_m", tip_strain_minus_sim_m, t.size)
+        for j in range(eps.shape[1]):
+            self._send_scalars(
+                gauge_entity("/residual/strain", j),
+                t,
+                MICROSTRAIN * eps[:, j],
+                f"g{j + 1} measured - sim",
+                COLOUR_RESIDUAL,
+            )
+        self._send_points_series(
+            "/residual/tip_lateral/image_minus_sim",
+            ft,
+            MM_PER_M * image,
+            "image - sim",
+            COLOUR_MEASURED,
+        )
+        self._send_scalars(
+            "/residual/tip_lateral/strain_minus_sim",
+            t,
+            MM_PER_M * strain_tip,
+            "strains - sim",
+            COLOUR_STRAIN,
+        )
 
     def log_fig11(
         self,
@@ -387,16 +484,23 @@ class RunViewer:
         tip_lateral_m: ArrayLike,
         sim_hub_angle_rad: ArrayLike,
         sim_tip_lateral_m: ArrayLike,
-    ) -> None:
+    ) -> tuple[float, float, float, float] | None:
         """The paper's Fig. 11: lateral tip deflection against hub angle (static).
 
         Drawn in a 2D view in degrees (x) and millimetres (up = +lateral, so the 2D
-        view's y is -mm): measured points over the simulated loop.
+        view's y is -mm): measured points over the simulated loop, with axes at the edges
+        of the data and numbered ticks (a 2D view has no axes of its own).
 
         Parameters
         ----------
         hub_angle_rad, tip_lateral_m : (F,) measured points; NaN pairs are skipped.
         sim_hub_angle_rad, sim_tip_lateral_m : (M,) simulated loop, in time order.
+
+        Returns
+        -------
+        (x_min, x_max, y_min, y_max) of the figure in view units, with room for the tick
+        numbers (what :func:`pipelines.review.layout.build_blueprint` takes as
+        ``fig11_bounds``), or None when there is nothing to draw.
         """
         a = _series("hub_angle_rad", hub_angle_rad)
         w = _series("tip_lateral_m", tip_lateral_m, a.size)
@@ -404,32 +508,72 @@ class RunViewer:
         sw = _series("sim_tip_lateral_m", sim_tip_lateral_m, sa.size)
         rec = self.recording
         keep = np.isfinite(a) & np.isfinite(w)
-        measured = np.column_stack([np.degrees(a[keep]), -1e3 * w[keep]])
+        measured = np.column_stack([DEG_PER_RAD * a[keep], -MM_PER_M * w[keep]])
         rec.log(
             "/fig11/measured",
-            rr.Points2D(measured, colors=[COLOUR_MEASURED], radii=[0.6]),
+            rr.Points2D(measured, colors=[COLOUR_MEASURED], radii=[0.6], draw_order=3.0),
             static=True,
             strict=True,
         )
         keep = np.isfinite(sa) & np.isfinite(sw)
-        loop = np.column_stack([np.degrees(sa[keep]), -1e3 * sw[keep]])
+        loop = np.column_stack([DEG_PER_RAD * sa[keep], -MM_PER_M * sw[keep]])
         if loop.shape[0] >= 2:
             rec.log(
                 "/fig11/sim",
-                rr.LineStrips2D([loop], colors=[COLOUR_SIM], radii=[0.15]),
+                rr.LineStrips2D([loop], colors=[COLOUR_SIM], radii=[0.15], draw_order=2.0),
                 static=True,
                 strict=True,
             )
         extent = np.vstack([measured, loop]) if loop.size else measured
-        if extent.size:
-            lo, hi = extent.min(axis=0), extent.max(axis=0)
-            axes = [[[lo[0], 0.0], [hi[0], 0.0]], [[0.0, lo[1]], [0.0, hi[1]]]]
-            rec.log(
-                "/fig11/axes",
-                rr.LineStrips2D(axes, colors=[(128, 128, 128)], radii=[0.05]),
-                static=True,
-                strict=True,
-            )
+        if not extent.size:
+            return None
+        axes = fig11_axes(extent.min(axis=0), extent.max(axis=0))
+        rec.log(
+            "/fig11/axes",
+            rr.LineStrips2D(axes.lines, colors=[COLOUR_AXES], radii=[0.05], draw_order=1.0),
+            static=True,
+            strict=True,
+        )
+        rec.log(
+            "/fig11/ticks",
+            rr.Points2D(
+                axes.tick_positions,
+                labels=axes.tick_labels,
+                colors=[COLOUR_AXES],
+                radii=[0.1],
+                show_labels=True,
+            ),
+            static=True,
+            strict=True,
+        )
+        return axes.bounds
+
+    def log_fig11_marker(
+        self, frame_t_s: ArrayLike, hub_angle_rad: ArrayLike, tip_lateral_m: ArrayLike
+    ) -> None:
+        """Where the run is on Fig. 11 at each frame time: one point that moves along the
+        loop as the time line plays (frames without a value are skipped).
+
+        Parameters
+        ----------
+        frame_t_s : (F,) frame times [s]; hub_angle_rad, tip_lateral_m : (F,).
+        """
+        ft = _series("frame_t_s", frame_t_s)
+        a = _series("hub_angle_rad", hub_angle_rad, ft.size)
+        w = _series("tip_lateral_m", tip_lateral_m, ft.size)
+        keep = np.isfinite(ft) & np.isfinite(a) & np.isfinite(w)
+        self._style("/fig11/now", rr.Points2D.from_fields(colors=[COLOUR_TIP], radii=[1.2]))
+        if not keep.any():
+            return
+        points = np.column_stack([DEG_PER_RAD * a[keep], -MM_PER_M * w[keep]])
+        self.recording.send_columns(
+            "/fig11/now",
+            indexes=[_time_column(ft[keep])],
+            columns=rr.Points2D.columns(positions=points).partition(
+                np.ones(points.shape[0], dtype=np.int64)
+            ),
+            strict=True,
+        )
 
     def log_events(self, events: Iterable[EventLike], *, t0_ns: int = 0) -> None:
         """Run events (start, stop, overruns, drops, clipping, errors) as a text log.
@@ -465,15 +609,26 @@ class RunViewer:
         )
 
     def log_results(self, ds: xr.Dataset) -> None:
-        """Everything a results Dataset holds (see ``pipelines.results.schema``), and its error
-        summary as a markdown document (computed by :func:`pipelines.review.display.run_view`)."""
+        """Everything a results Dataset holds (see ``pipelines.results.schema``), the residuals
+        and Fig. 11 with its marker, and the error summary with the colour key as a markdown
+        document (all computed by :func:`pipelines.review.display.run_view`)."""
         view = run_view(ds)
         self.log_samples(view.t_s, view.rocker_angle_rad, view.strain)
         self.log_sim(view.t_s, view.sim_tip_lateral_m, view.sim_strain)
         self.log_tip_deflection(
             view.frame_t_s, view.tip_lateral_image_m, view.t_s, view.tip_lateral_strain_m
         )
-        self.log_fig11(*view.fig11)
+        self.log_residuals(
+            view.t_s,
+            view.strain_residual,
+            view.frame_t_s,
+            view.tip_image_minus_sim_m,
+            view.tip_strain_minus_sim_m,
+        )
+        bounds = self.log_fig11(*view.fig11)
+        self.log_fig11_marker(view.frame_t_s, view.hub_at_frames_rad, view.tip_lateral_image_m)
+        if bounds is not None:
+            self.recording.send_blueprint(build_blueprint("processed", fig11_bounds=bounds))
         self.log_summary(view.summary_markdown)
 
 
@@ -494,6 +649,7 @@ def open_viewer(
     rrd_path: str | os.PathLike[str] | None = None,
     spawn: bool = False,
     connect_url: str | None = None,
+    layout: str = "processed",
 ) -> RunViewer:
     """Open a recording to exactly one destination, with the beambench blueprint.
 
@@ -504,6 +660,7 @@ def open_viewer(
         renamed on :meth:`RunViewer.close`).
     spawn : start a Rerun viewer and stream to it.
     connect_url : stream to a running viewer, e.g. ``rerun+http://127.0.0.1:9876/proxy``.
+    layout : ``"processed"`` (a processed run) or ``"raw"`` (a log replayed as recorded).
 
     Raises
     ------
@@ -521,8 +678,10 @@ def open_viewer(
         raise ValueError(
             f"connect_url must start with one of {', '.join(_URL_SCHEMES)}, got {connect_url!r}"
         )
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
     rec = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
-    blueprint = build_blueprint()
+    blueprint = build_blueprint(layout)
     if rrd_path is not None:
         out = Path(rrd_path)
         if out.is_dir():

@@ -169,3 +169,36 @@ def test_replay_of_a_daq_only_log(tmp_path: Path) -> None:
     e = rrd_entities(out)
     assert e["/daq/rocker_angle"].rows == 40
     assert "/camera/image" not in e and "/events" not in e
+
+
+def test_the_replay_layout_has_no_empty_panel(run_log: Path, tmp_path: Path) -> None:
+    """A raw log has no simulation, no tip and no Fig. 11: its layout shows none of them,
+    and every panel it has shows something that was logged."""
+    from pipelines.review.rrd import blueprint_views
+
+    out = tmp_path / "raw.rrd"
+    assert main(["replay", str(run_log), "--rrd", str(out)]) == 0
+    logged = [k for k in rrd_entities(out) if not k.startswith("/__")]
+    views = blueprint_views(out)
+    assert views
+    for v in views:
+        assert any(v.shows(e) for e in logged), f"empty panel: {v}"
+    assert not any(v.origin == "/fig11" for v in views)
+
+
+def test_frames_can_be_replayed_reduced_or_as_logged(run_log: Path, tmp_path: Path) -> None:
+    small, full = tmp_path / "small.rrd", tmp_path / "full.rrd"
+    assert main(["replay", str(run_log), "--rrd", str(small), "--frame-reduction", "2"]) == 0
+    assert main(["replay", str(run_log), "--rrd", str(full), "--frame-reduction", "1"]) == 0
+    sizes = []
+    for path in (small, full):
+        for chunk in RrdReader(path).stream():
+            if chunk.entity_path == "/camera/image":
+                rb = chunk.to_record_batch()
+                if "EncodedImage:blob" in rb.schema.names:
+                    blob = rb.column("EncodedImage:blob").to_pylist()[0][0]
+                    img = cv2.imdecode(np.frombuffer(bytes(blob), np.uint8), cv2.IMREAD_GRAYSCALE)
+                    sizes.append(img.shape)
+                    break
+    (h_small, w_small), (h_full, w_full) = sizes
+    assert (2 * h_small, 2 * w_small) == (h_full, w_full)

@@ -14,6 +14,7 @@ from rerun.chunk import RrdReader
 
 from pipelines.results.compare import summarise_errors
 from pipelines.results.dataset import make_results
+from pipelines.review.rrd import blueprint_views
 from pipelines.review.viewer import FrameOverlay, open_viewer, rrd_entities
 from pipelines.rig import Rig
 
@@ -75,9 +76,12 @@ def test_samples_and_sim_go_in_as_columns_with_exact_times(tmp_path: Path) -> No
     rows = _rows(path, "/daq/rocker_angle", "Scalars:scalars")
     times = np.array([r[0] for r in rows])
     np.testing.assert_array_equal(times, np.round(t * 1e9).astype(np.int64))
-    np.testing.assert_array_equal([r[1][0] for r in rows], rocker)
+    # shown in degrees and microstrain (the results keep SI)
+    np.testing.assert_allclose([r[1][0] for r in rows], np.degrees(rocker), rtol=1e-14)
     g2 = _rows(path, "/sim/strain/g2", "Scalars:scalars")
-    np.testing.assert_array_equal([r[1][0] for r in g2], 0.5 * strain[:, 1])
+    np.testing.assert_allclose([r[1][0] for r in g2], 1e6 * 0.5 * strain[:, 1], rtol=1e-14)
+    tip = _rows(path, "/sim/tip_lateral", "Scalars:scalars")
+    np.testing.assert_allclose([r[1][0] for r in tip], 20.0 * np.sin(4.97 * t), atol=1e-12)
     # A blueprint travels with the recording.
     assert RrdReader(path).blueprints()
 
@@ -91,6 +95,7 @@ def test_frames_keep_their_bytes_and_overlays_draw_on_the_image(tmp_path: Path) 
         hub_line_px=[[5.0, 40.0], [12.0, 36.0]],
         rigid_line_px=[[5.0, 40.0], [62.0, 10.0]],
         sim_beam_px=centre + 0.5,
+        difference_px=centre + 2.0,
         tip_px=[60.0, 8.0],
         ok=True,
     )
@@ -112,8 +117,20 @@ def test_frames_keep_their_bytes_and_overlays_draw_on_the_image(tmp_path: Path) 
     np.testing.assert_allclose(np.array(strips[0][1][0]), centre)
     tip = _rows(path, "/camera/image/tip", "Points2D:positions")
     np.testing.assert_allclose(tip[0][1], [[60.0, 8.0]])
+    diff = _rows(path, "/camera/image/difference", "LineStrips2D:strips")
+    np.testing.assert_allclose(np.array(diff[0][1][0]), centre + 2.0)
+    dots = _rows(path, "/camera/image/sim_stations", "Points2D:positions")
+    np.testing.assert_allclose(np.array(dots[0][1]), centre + 0.5)
     # The failed frame clears the previous overlays so nothing stale is drawn over it.
-    for name in ("centreline", "hub_line", "rigid_line", "sim_beam", "tip"):
+    for name in (
+        "centreline",
+        "hub_line",
+        "rigid_line",
+        "sim_beam",
+        "sim_stations",
+        "difference",
+        "tip",
+    ):
         cleared = _rows(path, f"/camera/image/{name}", "Clear:is_recursive")
         assert [c[0] for c in cleared] == [200_000_000], name
     reasons = _rows(path, "/events/frames", "TextLog:text")
@@ -209,6 +226,11 @@ def test_log_results_shows_everything_in_the_results(tmp_path: Path) -> None:
     loop = np.array(_rows(path, "/fig11/sim", "LineStrips2D:strips")[0][1][0])
     t = ds["time"].values
     assert loop.shape[0] == np.count_nonzero(t >= t[-1] - 3 / 0.92)
+    # Fig. 11's marker: one point per measured frame, on the time line, moving along the loop
+    assert e["/fig11/now"].rows == int(ds["frame_ok"].sum())
+    assert {"ticks", "axes"} <= {k.split("/")[-1] for k in e if k.startswith("/fig11/")}
+    # The layout shown is the one sent with the data: Fig. 11's view bounds fit the loop
+    assert len(RrdReader(path).blueprints()) >= 1
     # The error summary travels as a markdown document, in mm.
     doc = _rows(path, "/summary", "TextDocument:text")[0][1][0]
     rms_mm = 1e3 * summarise_errors(ds)["tip_lateral_image_vs_sim_rms_m"]
@@ -256,35 +278,6 @@ def test_bad_arguments_name_the_parameter(tmp_path: Path) -> None:
         rrd_entities(junk)
 
 
-def _blueprint_views(path: Path) -> list[tuple[str, str, list[str]]]:
-    """(class, origin, content queries with $origin expanded) of each blueprint view."""
-    reader = RrdReader(path)
-    views: dict[str, dict[str, Any]] = {}
-    for chunk in reader.stream(store=reader.blueprints()[0]):
-        if not chunk.entity_path.startswith("/view/"):
-            continue
-        view = views.setdefault(chunk.entity_path.split("/")[2], {})
-        rb = chunk.to_record_batch()
-        for name, key in (
-            ("ViewBlueprint:class_identifier", "class"),
-            ("ViewBlueprint:space_origin", "origin"),
-            ("ViewContents:query", "query"),
-        ):
-            if name in rb.schema.names:
-                view[key] = rb.column(name).to_pylist()[-1]
-    return [
-        (v["class"][0], v["origin"][0], [q.replace("$origin", v["origin"][0]) for q in v["query"]])
-        for v in views.values()
-    ]
-
-
-def _matches(query: str, entity: str) -> bool:
-    if query.endswith("/**"):
-        base = query[:-3]
-        return entity == base or entity.startswith(base.rstrip("/") + "/")
-    return entity == query
-
-
 def test_the_blueprint_lays_out_every_logged_entity(tmp_path: Path) -> None:
     path = tmp_path / "full.rrd"
     overlay = FrameOverlay(
@@ -299,13 +292,15 @@ def test_the_blueprint_lays_out_every_logged_entity(tmp_path: Path) -> None:
         viewer.log_frame(0.5, _png(), "png", overlay)
         viewer.log_frame(0.6, _png(), "png", FrameOverlay(ok=False, reason="blurred"))
         viewer.log_events([Event(0, 2, "start", "")])
-    views = _blueprint_views(path)
+    views = [(v.kind, v.origin, list(v.queries)) for v in blueprint_views(path)]
     classes = sorted(c for c, _, _ in views)
-    assert classes == ["2D", "2D", "TextDocument", "TextLog"] + ["TimeSeries"] * 6
+    # camera, Fig. 11; summary, events; rocker, 4 x (strain, residual), tip, tip residual
+    assert classes == ["2D", "2D", "TextDocument", "TextLog"] + ["TimeSeries"] * 11
     assert {o for c, o, _ in views if c == "2D"} == {"/camera", "/fig11"}
     logged = [k for k in rrd_entities(path) if not k.startswith("/__")]
-    assert len(logged) == 24  # 5 daq, 5 sim, 2 tip, image + 5 overlays, 3 fig11, 3 text
-    orphans = [e for e in logged if not any(_matches(q, e) for _, _, qs in views for q in qs)]
+    # 5 daq, 5 sim, 2 tip, 6 residuals, image + 7 overlays, 5 fig11, 3 text
+    assert len(logged) == 34
+    orphans = [e for e in logged if not any(v.shows(e) for v in blueprint_views(path))]
     assert not orphans, f"logged but in no view: {orphans}"
     # Each gauge's panel shows its measured and simulated strain together.
     strain_panels = [qs for c, _, qs in views if c == "TimeSeries" and "/daq/strain/g2" in qs]
