@@ -29,6 +29,7 @@ COMMANDS = (
     "recover",
     "process",
     "replay",
+    "view",
     "measure",
     "sim",
     "bench",

@@ -27,6 +27,7 @@ def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None
         "recover",
         "process",
         "replay",
+        "view",
         "measure",
         "sim",
         "bench",
