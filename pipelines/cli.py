@@ -24,6 +24,7 @@ from vision.errors import VisionError
 
 COMMANDS = (
     "demo",
+    "check",
     "capture",
     "info",
     "recover",

@@ -50,6 +50,7 @@ class SyntheticConfig:
     scene: str = "reciprocating"
     release_tip_m: float = 0.03
     release_at_s: float = 1.0
+    strain_offset: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         for name in (
@@ -73,6 +74,13 @@ class SyntheticConfig:
         if not math.isfinite(self.release_tip_m) or not 0.0 < abs(self.release_tip_m) < 0.2:
             raise ValueError(
                 f"release_tip_m must be within +/-0.2 m and not 0, got {self.release_tip_m!r}"
+            )
+        if len(self.strain_offset) != 4 or not all(
+            math.isfinite(v) and abs(v) <= 0.01 for v in self.strain_offset
+        ):
+            raise ValueError(
+                "strain_offset must be four finite strains within +/-0.01 (m/m), got "
+                f"{list(self.strain_offset)!r}"
             )
         if not math.isfinite(self.release_at_s) or self.release_at_s < 0.0:
             raise ValueError(

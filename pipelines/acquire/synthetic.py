@@ -140,8 +140,10 @@ class SyntheticBench:
 
     # -- callables for the fakes ------------------------------------------------------
     def strain_fn(self, t_s: FloatArray) -> FloatArray:
-        """Surface strain (N, 4) at run times ``t_s`` [s]."""
-        return np.asarray(self._strain(np.asarray(t_s, float)), float)
+        """Surface strain (N, 4) at run times ``t_s`` [s], as the gauges read it (with the
+        bridges' zero offsets of ``rig.synthetic.strain_offset``)."""
+        offset = np.asarray(self.rig.synthetic.strain_offset, float)
+        return np.asarray(self._strain(np.asarray(t_s, float)), float) + offset
 
     def angle_fn(self, t_s: FloatArray) -> FloatArray:
         """Rocker angle (N,) [rad] in the frame of Eqs. 1-2 at run times ``t_s``."""

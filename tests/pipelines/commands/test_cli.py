@@ -22,6 +22,7 @@ def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None
         assert name in out
     assert set(COMMANDS) == {
         "demo",
+        "check",
         "capture",
         "info",
         "recover",
