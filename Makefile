@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast lint bench reproduce clean
+.PHONY: demo test test-fast lint bench reproduce screenshots clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -37,6 +37,10 @@ bench: $(STAMP)
 	$(BIN)/beambench bench sim
 	$(BIN)/beambench bench vision
 	$(BIN)/beambench bench daq
+
+# The README's pictures of the Rerun review (needs Debian's chromium).
+screenshots: $(STAMP)
+	$(BIN)/python sample_data/screenshots.py demo-out
 
 reproduce: $(STAMP)
 	$(BIN)/beambench reproduce --out reproduce-out

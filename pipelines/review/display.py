@@ -64,6 +64,26 @@ def error_table(errors: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def compact_error_table(errors: Mapping[str, Any]) -> list[str]:
+    """The error summary as markdown table lines, RMS and max side by side (half the rows
+    of :func:`error_table`, so it is read without scrolling), in mm and microstrain."""
+    lines = ["| comparison | RMS | max | unit |", "|---|---:|---:|---|"]
+    for stem, label in (
+        ("tip_lateral_image_vs_sim", "tip lateral, image - sim"),
+        ("tip_lateral_strain_vs_image", "tip lateral, strain - image"),
+        ("tip_lateral_strain_vs_sim", "tip lateral, strain - sim"),
+    ):
+        rms, mx = (format_value(float(errors[f"{stem}_{k}_m"]), 1e3) for k in ("rms", "max"))
+        lines.append(f"| {label} | {rms} | {mx} | mm |")
+    for j, (rms_v, max_v) in enumerate(
+        zip(errors["strain_vs_sim_rms"], errors["strain_vs_sim_max"], strict=True)
+    ):
+        rms, mx = format_value(float(rms_v), 1e6), format_value(float(max_v), 1e6)
+        lines.append(f"| strain g{j + 1}, measured - sim | {rms} | {mx} | µε |")
+    lines.append(f"| frames compared | {int(errors['n_frames_compared'])} | | |")
+    return lines
+
+
 def fig11_frames_mask(ds: xr.Dataset) -> NDArray[np.bool_]:
     """(F,) bool: the frames drawn as measured points over the simulated loop.
 
@@ -132,11 +152,11 @@ def run_view(ds: xr.Dataset) -> RunView:
     sim_hub = ds["hub_angle_sim"].values if "hub_angle_sim" in ds else rocker
     model = ds.attrs.get("sim_model", "?")
     lines = [
-        f"# Simulation ({model}) against measurement",
+        f"### Simulation ({model}) against measurement",
         "",
-        *error_table(summarise_errors(ds)),
+        *compact_error_table(summarise_errors(ds)),
         "",
-        "## Camera overlays",
+        "### Camera overlays",
         "",
         OVERLAY_KEY.format(gain=DIFFERENCE_GAIN),
     ]

@@ -3,10 +3,11 @@
 Two layouts, one per kind of recording (see ``pipelines.review.viewer`` for what is logged
 where):
 
-- ``processed``: the camera with the measurement and simulation overlays; the error summary
-  (with the colour key) and the event log; rocker angle; per gauge the measured and simulated
-  strain with their residual underneath; the tip deflection from images, strains and
-  simulation with its residuals; the paper's Fig. 11 with axes and a marker at the current time.
+- ``processed``: the camera with the measurement and simulation overlays over the error
+  summary (with the colour key; the event log in a tab beside it); rocker angle and, per
+  gauge, the measured and simulated strain with their residual underneath; the tip deflection
+  from images, strains and simulation with its residuals over the paper's Fig. 11 with axes
+  and a marker at the current time.
 - ``raw``: what a log holds before processing (``beambench replay``): the camera, the events,
   the rocker angle and the measured strains, no empty panel.
 
@@ -59,7 +60,7 @@ def _gauge_panel(j: int, raw: bool) -> rrb.View | rrb.Container:
         origin="/",
         contents=[gauge_entity("/residual/strain", j)],
     )
-    return rrb.Vertical(strain, residual, row_shares=[2, 1])
+    return rrb.Vertical(strain, residual, row_shares=[3, 2])
 
 
 def build_blueprint(
@@ -99,7 +100,7 @@ def build_blueprint(
         rrb.TimeSeriesView(
             name="tip lateral residual (mm)", origin="/", contents=["/residual/tip_lateral/**"]
         ),
-        row_shares=[2, 1],
+        row_shares=[3, 2],
     )
     bounds = None
     if fig11_bounds is not None:
@@ -114,13 +115,12 @@ def build_blueprint(
         rrb.Horizontal(
             rrb.Vertical(
                 camera,
-                rrb.TextDocumentView(name="error summary", origin="/summary"),
-                events,
-                row_shares=[5, 4, 1],
+                rrb.Tabs(rrb.TextDocumentView(name="error summary", origin="/summary"), events),
+                row_shares=[4, 3],
             ),
-            rrb.Vertical(rocker, strains, tip, row_shares=[1, 4, 3]),
-            fig11,
-            column_shares=[2, 2, 1],
+            rrb.Vertical(rocker, strains, row_shares=[2, 7]),
+            rrb.Vertical(tip, fig11, row_shares=[4, 3]),
+            column_shares=[2, 2, 1.5],
         ),
         collapse_panels=True,
     )
