@@ -37,9 +37,10 @@ from sim.checks import (
     check_positive,
     check_simulation_inputs,
 )
+from sim.config import DAMPING_LAWS
 from sim.drives import Drive
 from sim.errors import SimInputError, StaticSolveError
-from sim.models.fe_ancf import DAMPING_LAWS, AncfBeam, AncfSystem
+from sim.models.fe_ancf import AncfBeam, AncfSystem
 from sim.models.fe_flxdyn import FlxdynBeam, FlxdynSystem
 from sim.result import SimResult
 from sim.solvers.integrate import integrate
