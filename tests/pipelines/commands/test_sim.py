@@ -257,3 +257,49 @@ def test_a_misspelt_law_in_the_rig_is_one_error_line(
     assert main(["sim", "reciprocating", "--rig", str(rig)]) == 2
     line = _one_error_line(capsys)
     assert "rig.toml" in line and "law" in line
+
+
+def _last_three_cycles(t: np.ndarray, y: np.ndarray) -> float:
+    """Amplitude of the drive-frequency component over the last three cycles."""
+    w = t >= t[-1] - 3.0 * PAPER_PERIOD_S - 1e-9
+    om = PAPER_OMEGA_RAD_S
+    a = np.stack([np.cos(om * t[w]), np.sin(om * t[w]), np.ones(int(w.sum()))], axis=1)
+    c, s, _ = np.linalg.lstsq(a, y[w], rcond=None)[0]
+    return math.hypot(c, s)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("law", ["paper", "material"])
+def test_default_reciprocating_strains_are_within_half_a_percent(tmp_path: Path, law: str) -> None:
+    """Done-when of issue 15: the default ``beambench sim reciprocating`` (auto) has every
+    gauge's strain amplitude within 0.5 % of the exact beam with the same law. The exact
+    beam: 8 elements at rtol 1e-8 with the curvature recovered from the nodes (the h^2
+    limit of the element curvature: tests/sim/models/test_fe.py), steady after two of
+    five cycles. Measured: within 3e-5 for both laws (the element curvature of the
+    3 elements ``auto`` used to pick was 4.2 % low at the 603 mm gauge)."""
+    out = tmp_path / f"{law}.nc"
+    assert main(["sim", "reciprocating", "--damping-law", law, "--out", str(out)]) == 0
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        t, strain = ds["time"].values, ds["strain"].values
+        gauges = ds["gauge"].values
+        settings = json.loads(ds.attrs["settings"])
+    assert settings["auto_strain_error_estimate"] <= settings["auto_strain_tol"] <= 5e-3
+    assert settings["auto_station_error_estimate"] <= settings["auto_tol"]
+    t_ref = np.arange(round(5.0 * PAPER_PERIOD_S * 400.0) + 1) / 400.0
+    ref = simulate_fe(
+        BeamProperties.from_config(BeamConfig()),
+        SinusoidDrive(0.7669, PAPER_OMEGA_RAD_S),
+        t_ref,
+        n_elements=8,
+        a0_per_s=0.1,
+        a1_s=0.1,
+        rtol=1e-8,
+        atol=1e-11,
+        damping_law=law,
+        gauge_positions_m=gauges,
+        curvature="recovered",
+    )
+    for g in range(gauges.size):
+        amp = _last_three_cycles(t, strain[:, g])
+        ref_amp = _last_three_cycles(t_ref, ref.strain[:, g])
+        assert amp == pytest.approx(ref_amp, rel=5e-3), (g, amp, ref_amp)
