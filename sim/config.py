@@ -137,22 +137,36 @@ class BeamConfig:
         return self.hub_offset_m + self.length_m
 
 
+#: the damping laws: ``"paper"``, Eq. 28's a0 M + a1 K_T with K_T the tangent stiffness
+#: (geometric stiffness of the current axial force and moment included, FLXDYN's form), and
+#: ``"material"``, Kelvin-Voigt: a0 M on the elastic rates plus a1 times the material
+#: stiffness acting on the strain rates (bending and axial), the law of most codes (Exudyn)
+DAMPING_LAWS = ("paper", "material")
+
+
 @dataclass(frozen=True)
 class DampingConfig:
-    """Proportional damping F = (a0 M + a1 K_T) * relative nodal velocities (Eq. 28).
+    """Proportional damping F = (a0 M + a1 K) * relative nodal velocities (Eq. 28).
 
     ``a0_per_s``/``a1_s`` are the reciprocating-run values; the ``free_decay_*`` pair is
-    the one the paper fitted from the free-decay test (§5.2.1).
+    the one the paper fitted from the free-decay test (§5.2.1). ``law`` (one of
+    :data:`DAMPING_LAWS`) says which K: the tangent stiffness (``"paper"``) or the
+    material stiffness on the strain rates (``"material"``).
     """
 
     a0_per_s: float = 0.1
     a1_s: float = 0.1
     free_decay_a0_per_s: float = 0.00087
     free_decay_a1_s: float = 0.00087
+    law: str = "paper"
 
     def __post_init__(self) -> None:
         for name in ("a0_per_s", "a1_s", "free_decay_a0_per_s", "free_decay_a1_s"):
             _non_negative(name, getattr(self, name))
+        if self.law not in DAMPING_LAWS:
+            raise SimInputError(
+                "law", f"must be one of {', '.join(DAMPING_LAWS)}, got {self.law!r}"
+            )
 
 
 @dataclass(frozen=True)

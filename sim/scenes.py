@@ -87,9 +87,11 @@ def reciprocating(
     n_modes: int = 4,
     rtol: float | None = None,
     nonlinear: bool = False,
+    damping_law: str = "paper",
 ) -> SceneRun:
     """The bench's reciprocating beam from rest: the paper's sinusoid (Eq. 53) or the
-    four-bar's true output at ``linkage.crank_frequency_hz``."""
+    four-bar's true output at ``linkage.crank_frequency_hz``; ``damping_law`` as
+    :class:`sim.models.registry.ModelSettings`."""
     props = BeamProperties.from_config(beam)
     hub: Drive
     if drive == "paper":
@@ -112,8 +114,10 @@ def reciprocating(
         n_modes=n_modes,
         tol=_scene_tol(model, rtol),
         nonlinear=nonlinear,
+        damping_law=damping_law,
     )
-    return SceneRun(res, {"drive": drive, "a0_per_s": a0_per_s, "a1_s": a1_s})
+    extras = {"drive": drive, "a0_per_s": a0_per_s, "a1_s": a1_s, "damping_law": damping_law}
+    return SceneRun(res, extras)
 
 
 def static(

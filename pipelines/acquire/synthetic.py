@@ -193,6 +193,7 @@ def _simulate(rig: Rig, beam: BeamProperties, drive: FourBarDrive, t: FloatArray
         t,
         a0_per_s=rig.damping.a0_per_s,
         a1_s=rig.damping.a1_s,
+        damping_law=rig.damping.law,
         gauge_positions_m=rig.gauges.positions_m,
         n_stations=41,
         n_modes=4,

@@ -1,10 +1,12 @@
-"""Arguments shared by the subcommands: the rig file and the Rerun destination."""
+"""Arguments shared by the subcommands: the rig file, the damping law and the Rerun
+destination."""
 
 from __future__ import annotations
 
 import argparse
 
 from pipelines.rig import Rig, load_rig
+from sim.config import DAMPING_LAWS
 
 
 def add_rig_argument(parser: argparse.ArgumentParser) -> None:
@@ -18,6 +20,22 @@ def add_rig_argument(parser: argparse.ArgumentParser) -> None:
 
 def rig_from_args(args: argparse.Namespace) -> Rig:
     return load_rig(args.rig)
+
+
+def add_damping_law_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--damping-law",
+        choices=DAMPING_LAWS,
+        default=None,
+        help="the a1 damping term: paper (Eq. 28, tangent stiffness) or material "
+        "(Kelvin-Voigt, strain rates); default: the rig's [damping] law",
+    )
+
+
+def damping_law_from_args(args: argparse.Namespace, rig: Rig) -> str:
+    """``--damping-law`` if given, else the rig's ``[damping] law``."""
+    law: str = rig.damping.law if args.damping_law is None else args.damping_law
+    return law
 
 
 def add_viewer_arguments(p: argparse.ArgumentParser) -> None:

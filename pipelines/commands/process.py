@@ -6,7 +6,11 @@ import argparse
 import math
 from pathlib import Path
 
-from pipelines.commands._args import add_rig_argument, add_viewer_arguments
+from pipelines.commands._args import (
+    add_damping_law_argument,
+    add_rig_argument,
+    add_viewer_arguments,
+)
 from pipelines.errors import BeambenchError
 from sim.models.registry import MODELS
 
@@ -38,6 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="relative tip error --model auto aims at (default 0.02: what the measurements "
         "resolve; 1e-4 runs the exact beam)",
     )
+    add_damping_law_argument(p)
     p.add_argument("--workers", type=int, default=None, help="processes measuring frames")
     add_viewer_arguments(p)
 
@@ -75,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
         model=args.model,
         sim_tol=SIM_TOL if args.sim_tol is None else args.sim_tol,
         workers=args.workers,
+        damping_law=args.damping_law,
     )
     write_processed(processed, out)
     if args.rrd or args.spawn or args.connect:

@@ -9,7 +9,12 @@ import math
 import sys
 from typing import Any
 
-from pipelines.commands._args import add_rig_argument, rig_from_args
+from pipelines.commands._args import (
+    add_damping_law_argument,
+    add_rig_argument,
+    damping_law_from_args,
+    rig_from_args,
+)
 from pipelines.errors import BeambenchError
 from pipelines.results.sim_dataset import (
     check_output_path,
@@ -60,6 +65,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="proportional damping a0 (1/s), a1 (s); default: the rig's",
     )
+    add_damping_law_argument(p)
     p.add_argument(
         "--duration",
         type=_finite,
@@ -166,6 +172,7 @@ def _run_scene(args: argparse.Namespace, rig: Rig) -> scenes.SceneRun:
             gauge_positions_m=gauges,
             rtol=args.rtol,
             nonlinear=args.nonlinear,
+            damping_law=damping_law_from_args(args, rig),
             **_kw(args),
         )
     if args.scene == "static":

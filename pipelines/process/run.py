@@ -149,9 +149,10 @@ def simulate_measured(
     rocker_rad: np.ndarray,
     model: str,
     tol: float = SIM_TOL,
+    damping_law: str | None = None,
 ) -> SimResult:
     """The beam driven by the measured hub angle (potentiometer trace); ``tol`` is the
-    relative tip error ``auto`` aims at."""
+    relative tip error ``auto`` aims at; ``damping_law`` (default: the rig's) the a1 term."""
     good = np.isfinite(rocker_rad)
     drive = TraceDrive(t_s[good], rocker_rad[good])
     beam = BeamProperties.from_config(rig.beam)
@@ -164,6 +165,7 @@ def simulate_measured(
         t_s,
         a0_per_s=rig.damping.a0_per_s,
         a1_s=rig.damping.a1_s,
+        damping_law=rig.damping.law if damping_law is None else damping_law,
         gauge_positions_m=rig.gauges.positions_m,
         n_modes=4,
         tol=tol if model == "auto" else None,  # modal and fe at their own tolerances
@@ -177,6 +179,7 @@ def _model_side(
     strain: np.ndarray,
     model: str,
     sim_tol: float,
+    damping_law: str | None = None,
 ) -> tuple[StrainShape, np.ndarray, Any, SimResult, tuple[float, float, float]]:
     """What a run gives without its frames: the strain-based tip, the free decay (if the
     run holds one) and the simulation. Returns them with the wall time of each step."""
@@ -196,7 +199,7 @@ def _model_side(
         )
         sim = simulate_release(rig, t_s, strain, decay)
     else:
-        sim = simulate_measured(rig, t_s, rocker_angle_rad, model, sim_tol)
+        sim = simulate_measured(rig, t_s, rocker_angle_rad, model, sim_tol, damping_law)
     t3 = time.perf_counter()
     return shape, tip_strain, decay, sim, (t1 - t0, t2 - t1, t3 - t2)
 
@@ -209,7 +212,10 @@ def process_run(
     model: str = "auto",
     sim_tol: float = SIM_TOL,
     workers: int | None = None,
+    damping_law: str | None = None,
 ) -> Processed:
+    """Process the run in ``log_path``; ``damping_law`` (``"paper"`` | ``"material"``,
+    default: the rig's ``[damping] law``) is the simulation's a1 term."""
     timings = Timings()
     t0 = time.perf_counter()
     run = load_log(log_path)
@@ -232,7 +238,14 @@ def process_run(
     # is then shared with the workers; its steps are timed inside the thread).
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="model") as side:
         model_side = side.submit(
-            _model_side, rig, t_s, samples.rocker_angle_rad, samples.strain, model, sim_tol
+            _model_side,
+            rig,
+            t_s,
+            samples.rocker_angle_rad,
+            samples.strain,
+            model,
+            sim_tol,
+            damping_law,
         )
         t0 = time.perf_counter()
         stations = tuple(float(x) for x in rig.gauges.positions_m)
@@ -274,6 +287,7 @@ def process_run(
         "sim_model": sim.model,
         "sim_settings": json.dumps(sim.settings, default=str),
         "sim_wall_time_s": sim.wall_time_s,
+        "sim_damping_law": rig.damping.law if damping_law is None else damping_law,
         "camera_to_daq_offset_s": alignment.offset_s if alignment.ok else math.nan,
         "camera_clock_drift_ppm": alignment.drift_ppm if alignment.ok else math.nan,
         "alignment": json.dumps(alignment.__dict__),

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from sim.beam import BeamProperties
 from sim.checks import check_choice
+from sim.config import DAMPING_LAWS
 
 FloatArray = NDArray[np.float64]
 
@@ -36,8 +37,6 @@ N_GAUSS = 4  # bending: 4-point Gauss (exact for the linear part)
 N_GAUSS_AXIAL = 2  # axial: reduced 2-point Gauss, against membrane locking
 _CS_STEP = 1e-30  # complex step: no cancellation, so any tiny step is exact to rounding
 _J2 = np.array([[0.0, -1.0], [1.0, 0.0]])  # rotation by +90 degrees (k x)
-#: the ``a1`` damping of :class:`AncfSystem`: Eq. 28's ``a1 K_T v`` or strain-rate only
-DAMPING_LAWS = ("paper", "material")
 
 
 def hermite(xi: FloatArray, h: float) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -22,14 +22,23 @@ with M, K, b, G of :class:`sim.modes.ModalIntegrals`:
   a term of first order, whose effect on the lateral equation (N w'')' is second order; so
   neither appears in the linear equations.
 
-Damping follows Eq. 28 on the elastic deformation rates, C = a0 M + a1 K_T, and by default
-K_T is the tangent stiffness as in Eq. 28 / FLXDYN: elastic K plus the geometric stiffness
-theta'^2 G of the current axial (centrifugal) force, so C varies in time. That is the
-paper's model and what the finite-element models (``sim.models.fe``) do, and it matters: on the
-bench (a1 = 0.1 s, first mode overdamped) leaving G out of the damping moves the tip by
-1.2 %. ``damping_geometric=False`` damps with the elastic K alone (a material view: only
-the bending strain rate dissipates), for comparison. Without stiffening there is no G
-anywhere.
+Damping acts on the elastic deformation rates, C = a0 M + a1 K_d, with one of two laws
+(``damping_law``, :data:`sim.config.DAMPING_LAWS`):
+
+- ``"paper"`` (default): Eq. 28 / FLXDYN, K_d = K_T the tangent stiffness, elastic K plus
+  the geometric stiffness theta'^2 G of the current axial (centrifugal) force, so C varies
+  in time. That is the paper's model and the ``"paper"`` law of the finite elements.
+- ``"material"``: Kelvin-Voigt, a1 times the material stiffness acting on the strain rates,
+  bending and axial. The bending part is a1 K q' (the dissipation 1/2 a1 int EI w_t''^2).
+  The axial part changes nothing here: the beam is inextensible to this order and the axial
+  force N = EA (eps + a1 eps') is fixed by the axial balance (the centrifugal load), however
+  it splits into an elastic and a viscous part; the lateral equation sees N through the
+  geometric stiffness theta'^2 G, which stays, but no a1 G in the damping. So C = a0 M + a1 K,
+  constant.
+
+It matters: on the bench (a1 = 0.1 s, first mode overdamped) the two laws move the tip by
+1.2 %. ``damping_geometric=False`` is the older spelling of the material law. Without
+stiffening there is no G anywhere and the laws agree.
 
 The equations are linear in q with time-varying coefficients; they are integrated with the
 batched Radau IIA scheme of ``sim.solvers.linear_radau`` with step halving until the
@@ -48,7 +57,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sim.beam import BeamProperties
-from sim.checks import check_non_negative, check_positive, check_simulation_inputs
+from sim.checks import (
+    check_choice,
+    check_non_negative,
+    check_positive,
+    check_simulation_inputs,
+)
+from sim.config import DAMPING_LAWS
 from sim.drives import Drive
 from sim.errors import SimInputError
 from sim.modes import ModalIntegrals, gauss_points, modal_integrals, mode_shapes
@@ -73,6 +88,11 @@ class ModalModel:
     integrals: ModalIntegrals
     damping_geometric: bool = True
 
+    @property
+    def damping_law(self) -> str:
+        """``"paper"`` (a1 K_T, geometric stiffness included) or ``"material"`` (a1 K)."""
+        return "paper" if self.damping_geometric else "material"
+
     @classmethod
     def build(
         cls,
@@ -84,7 +104,11 @@ class ModalModel:
         a1_s: float = 0.0,
         tip_mass_kg: float = 0.0,
         damping_geometric: bool = True,
+        damping_law: str = "paper",
     ) -> ModalModel:
+        """The model; ``damping_law="material"`` or ``damping_geometric=False`` damps with
+        the elastic K alone (the material law, see the module docstring)."""
+        law = check_choice("damping_law", damping_law, DAMPING_LAWS)
         if isinstance(n_modes, bool) or not isinstance(n_modes, int | np.integer) or n_modes < 1:
             raise SimInputError("n_modes", f"must be a positive integer, got {n_modes!r}")
         integrals = modal_integrals(
@@ -103,7 +127,7 @@ class ModalModel:
             check_non_negative("a1_s", a1_s),
             float(tip_mass_kg),
             integrals,
-            bool(damping_geometric),
+            bool(damping_geometric) and law == "paper",
         )
 
     @property
@@ -256,6 +280,7 @@ def simulate_modal(
     initial_q: ArrayLike | None = None,
     initial_qdot: ArrayLike | None = None,
     damping_geometric: bool = True,
+    damping_law: str = "paper",
 ) -> SimResult:
     """Simulate the beam with ``n_modes`` clamped-free modes on the prescribed hub.
 
@@ -266,15 +291,16 @@ def simulate_modal(
     t_eval_s : (N,) output times, s; the initial state is at ``t_eval_s[0]``.
     n_modes : number of assumed modes.
     stiffening : include the centrifugal (geometric) stiffening; ``False`` = seed 001.
-    a0_per_s, a1_s : proportional damping C = a0 M + a1 K_T (Eq. 28).
+    a0_per_s, a1_s : proportional damping C = a0 M + a1 K_d (Eq. 28).
     gauge_positions_m : (G,) gauge distances from the clamp, m.
     n_stations : equally spaced shape stations, clamp and tip included.
     rtol, atol : tolerance on the tip deflection: estimated max error <= atol (m) +
         rtol * max |tip deflection|.
     tip_mass_kg : point mass at the tip.
     initial_q, initial_qdot : (n_modes,) initial modal amplitudes (m) and rates (m/s).
-    damping_geometric : K_T includes the geometric stiffness theta'^2 G (Eq. 28, default);
-        ``False`` damps with the elastic K only.
+    damping_geometric : ``False`` is the same as ``damping_law="material"``.
+    damping_law : ``"paper"`` (default): K_d = K_T includes the geometric stiffness
+        theta'^2 G (Eq. 28); ``"material"``: Kelvin-Voigt, K_d = K (module docstring).
 
     Returns
     -------
@@ -292,6 +318,7 @@ def simulate_modal(
         a1_s=a1_s,
         tip_mass_kg=tip_mass_kg,
         damping_geometric=damping_geometric,
+        damping_law=damping_law,
     )
     start = time.perf_counter()
     q, _qd, info = integrate_modal(
@@ -338,6 +365,7 @@ def modal_result(
         "tip_mass_kg": model.tip_mass_kg,
         "rtol": rtol,
         "atol": atol,
+        "damping_law": model.damping_law,
         "damping_stiffness": (
             "tangent K + theta'^2 G"
             if model.stiffening and model.damping_geometric

@@ -19,7 +19,10 @@ T = 1/2 int rhoA [(u' - theta' w)^2 + (w' + theta' (R + u))^2] adds to the linea
 
 where D(s) = int_0^s Phi' Phi'^T (so u2 = -q^T D q / 2). They are assembled from tensors
 (A_ijk = int rhoA Phi_i D_jk, F_abcd = int rhoA D_ab D_cd, H = int N Phi'^4, S = sym int EI
-Phi''^2 Phi'^2). Damping per Eq. 28 with the tangent stiffness also includes the tangent of V4.
+Phi''^2 Phi'^2). Damping per Eq. 28 with the tangent stiffness (``damping_law="paper"``)
+also includes the tangent of V4 and the geometric stiffness of the first-order axial force;
+the Kelvin-Voigt law (``"material"``) is the gradient of the dissipation
+1/2 a1 int EI kappa_t^2 of the exact curvature instead.
 
 The nonlinear terms are small, so the solution is a fixed-point iteration on the whole
 trajectory: each pass is one batched Radau IIA solve (``sim.solvers.linear_radau``) of the
@@ -98,6 +101,10 @@ class NonlinearModalTerms:
     h: FloatArray  # (n, n, n, n), symmetric
     s: FloatArray  # (n, n, n, n), symmetric
     a1_s: float
+    #: third-order damping a1 d(i, j, k, l) qd_j q_k q_l: the tangent of V4 (paper law) or
+    #: the gradient of the Kelvin-Voigt dissipation of the exact curvature (material law)
+    d: FloatArray  # (n, n, n, n)
+    damping_law: str = "paper"
 
     @classmethod
     def build(cls, model: ModalModel) -> NonlinearModalTerms:
@@ -120,7 +127,15 @@ class NonlinearModalTerms:
         p4 = np.einsum(
             "p,pa,pb,pc,pd->abcd", w * beam.bending_stiffness_n_m2, ddphi, ddphi, dphi, dphi
         )
-        return cls(a, f, h, _symmetrise4(p4), model.a1_s)
+        s = _symmetrise4(p4)
+        if model.damping_law == "paper":
+            d = 6.0 * s
+        else:
+            # dissipation 1/2 a1 int EI kappa_t^2, kappa = w'' (1 + w'^2 / 2): the force
+            # a1 int EI kappa_t dkappa/dq to third order is
+            # a1 int EI (w_t'' w'^2 Phi_i'' + w_t'' w'' w' Phi_i' + w'' w' w_t' Phi_i'')
+            d = p4 + np.einsum("jkil->ijkl", p4) + np.einsum("iklj->ijkl", p4)
+        return cls(a, f, h, s, model.a1_s, d, model.damping_law)
 
     def force(
         self,
@@ -141,13 +156,15 @@ class NonlinearModalTerms:
         e4b = -0.5 * (rate**2)[:, None] * _cubic(f_i, q, q, q)
         e4c = 0.5 * (rate**2)[:, None] * _cubic(h, q, q, q)
         ev4 = 2.0 * _cubic(s, q, q, q)
-        damp = 6.0 * self.a1_s * _cubic(s, qd, q, q)
-        # a1 K_sigma(N1) q': the geometric stiffness of the first-order axial force
-        # N1(s) = int_s^L rhoA (2 theta' w_t + theta'' w) in the tangent stiffness of Eq. 28
-        a_k = np.transpose(a, (1, 0, 2))  # a_k[i, k, j] = a[k, i, j]
-        damp = damp + self.a1_s * (
-            2.0 * rate[:, None] * _quad(a_k, qd, qd) + acc[:, None] * _quad(a_k, q, qd)
-        )
+        damp = self.a1_s * _cubic(self.d, qd, q, q)
+        if self.damping_law == "paper":
+            # a1 K_sigma(N1) q': the geometric stiffness of the first-order axial force
+            # N1(s) = int_s^L rhoA (2 theta' w_t + theta'' w) in the tangent stiffness of
+            # Eq. 28 (the material law has no axial force in its damping)
+            a_k = np.transpose(a, (1, 0, 2))  # a_k[i, k, j] = a[k, i, j]
+            damp = damp + self.a1_s * (
+                2.0 * rate[:, None] * _quad(a_k, qd, qd) + acc[:, None] * _quad(a_k, q, qd)
+            )
         out: FloatArray = e3 + e4a + e4b + e4c + ev4 + damp
         return out
 
@@ -285,14 +302,24 @@ def simulate_modal_nonlinear(
     tip_mass_kg: float = 0.0,
     initial_q: ArrayLike | None = None,
     initial_qdot: ArrayLike | None = None,
+    damping_law: str = "paper",
 ) -> SimResult:
     """Like :func:`sim.models.modal.simulate_modal` (always with stiffening), with the geometric
     nonlinearity to third order; ``model="modal-nonlinear"``. Station longitudinal
-    deflections include the quartic foreshortening -1/8 int w'^4."""
+    deflections include the quartic foreshortening -1/8 int w'^4. ``damping_law``:
+    ``"paper"`` (a1 times the tangent stiffness, its geometric part and the tangent of V4
+    included) or ``"material"`` (a1 times the strain rates of the exact curvature)."""
     t, gauges, stations = check_simulation_inputs(
         beam, drive, t_eval_s, gauge_positions_m, n_stations
     )
-    model = ModalModel.build(beam, n_modes, a0_per_s=a0_per_s, a1_s=a1_s, tip_mass_kg=tip_mass_kg)
+    model = ModalModel.build(
+        beam,
+        n_modes,
+        a0_per_s=a0_per_s,
+        a1_s=a1_s,
+        tip_mass_kg=tip_mass_kg,
+        damping_law=damping_law,
+    )
     terms = NonlinearModalTerms.build(model)
     start = time.perf_counter()
     q, _qd, info = integrate_modal_nonlinear(

@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike
 
 from sim.beam import BeamProperties
 from sim.checks import check_choice
+from sim.config import DAMPING_LAWS
 from sim.drives import Drive
 from sim.errors import SimInputError
 from sim.models.fe import simulate_fe
@@ -43,11 +44,14 @@ class ModelSettings:
 
     ``tol`` is each model's accuracy setting (``auto``: its ``tol``; ``modal`` and ``fe``:
     the integrator's rtol; ``rigid``: none), ``None`` for the model's own default.
-    ``n_modes``, ``nonlinear`` and ``stiffening`` apply to ``modal`` only.
+    ``n_modes``, ``nonlinear`` and ``stiffening`` apply to ``modal`` only. ``damping_law``
+    (:data:`sim.config.DAMPING_LAWS`) is the ``a1`` term: ``"paper"`` (Eq. 28, tangent
+    stiffness) or ``"material"`` (Kelvin-Voigt, strain rates).
     """
 
     a0_per_s: float = 0.0
     a1_s: float = 0.0
+    damping_law: str = "paper"
     gauge_positions_m: Sequence[float] | ArrayLike = ()
     n_stations: int = 21
     tol: float | None = None
@@ -73,6 +77,7 @@ def _modal(beam: BeamProperties, drive: Drive, t_s: ArrayLike, s: ModelSettings)
         "a1_s": s.a1_s,
         "gauge_positions_m": s.gauge_positions_m,
         "n_stations": s.n_stations,
+        "damping_law": s.damping_law,
     }
     if s.tol is not None:
         kw["rtol"] = s.tol
@@ -95,6 +100,7 @@ def _fe(beam: BeamProperties, drive: Drive, t_s: ArrayLike, s: ModelSettings) ->
         a1_s=s.a1_s,
         gauge_positions_m=s.gauge_positions_m,
         n_stations=s.n_stations,
+        damping_law=s.damping_law,
         **kw,
     )
 
@@ -109,6 +115,7 @@ def _auto(beam: BeamProperties, drive: Drive, t_s: ArrayLike, s: ModelSettings) 
         a1_s=s.a1_s,
         gauge_positions_m=s.gauge_positions_m,
         n_stations=s.n_stations,
+        damping_law=s.damping_law,
         **kw,
     )
 
@@ -139,6 +146,7 @@ def simulate(
     n_modes: int = 4,
     nonlinear: bool = False,
     stiffening: bool = True,
+    damping_law: str = "paper",
 ) -> SimResult:
     """Simulate the beam on the prescribed hub with the model named ``model``.
 
@@ -148,6 +156,7 @@ def simulate(
     beam, drive : the beam and its prescribed hub motion.
     t_eval_s : (N,) strictly increasing output times, s.
     a0_per_s, a1_s : proportional damping of Eq. 28.
+    damping_law : ``"paper"`` or ``"material"`` (:class:`ModelSettings`).
     gauge_positions_m : (G,) gauge distances from the clamp, m.
     n_stations : equally spaced shape stations, clamp and tip included.
     tol : the model's tolerance (see :class:`ModelSettings`); ``None``: its own default.
@@ -163,6 +172,7 @@ def simulate(
     settings = ModelSettings(
         a0_per_s=a0_per_s,
         a1_s=a1_s,
+        damping_law=check_choice("damping_law", damping_law, DAMPING_LAWS),
         gauge_positions_m=gauge_positions_m,
         n_stations=n_stations,
         tol=tol,
