@@ -146,9 +146,11 @@ def loss_window(tmp: Path, kill_after_s: float, index: int) -> dict[str, float]:
     fixed = tmp / f"fixed{index}.mcap"
     recover_log(out, fixed)
     run = read_run(fixed)
-    # run-clock zero in UTC, as the capture recorded it right after starting the DAQ
-    zero = datetime.fromisoformat(str(run.run_info["start_utc"]).replace("Z", "+00:00"))
-    killed_at_s = t_kill_utc - zero.timestamp()
+    # run-clock zero in UTC: the capture recorded the DAQ's start right after starting
+    # it, and the log's zero is the pre-roll later
+    started = datetime.fromisoformat(str(run.run_info["start_utc"]).replace("Z", "+00:00"))
+    zero_s = started.timestamp() + float(run.run_info.get("preroll_s", 0.0))
+    killed_at_s = t_kill_utc - zero_s
     last_s = float(run.samples.t_ns[-1]) * 1e-9 if len(run.samples) else 0.0
     return {"killed_at_s": killed_at_s, "last_sample_s": last_s, "loss_s": killed_at_s - last_s}
 
