@@ -35,6 +35,7 @@ from pipelines.rig import Rig, load_rig
 
 WIDTH_PX, HEIGHT_PX, FPS = 2048, 1536, 15.0
 CPU_BUDGET = 0.25  # of one core, for real-time capture
+LOSS_BUDGET_S = 0.3  # of DAQ data at a SIGKILL, under load (issue #16)
 
 
 def bench_frames(n: int = 12, quality: int = 90) -> list[bytes]:
@@ -212,10 +213,10 @@ def run(quick: bool = False) -> int:
             f"| loss window at SIGKILL (kill time - last restored sample) | max {worst:.2f} s "
             f"({detail}) |"
         )
-        ok &= worst <= rig.daq.flush_interval_s + 2 * rig.daq.block_duration_s + 0.2
+        ok &= worst <= LOSS_BUDGET_S
     print(
         "\nresult:",
         "PASS" if ok else "FAIL",
-        "(zero drops, CPU under budget, loss window within one flush interval + 2 blocks)",
+        f"(zero drops, CPU under budget, loss window at most {LOSS_BUDGET_S:g} s)",
     )
     return 0 if ok else 1

@@ -303,3 +303,29 @@ def test_slow_renderer_drops_frames_honestly_unless_rendered_ahead(tmp_path: Pat
         realtime=True,
     )
     assert (ahead.frames, ahead.dropped_frames, ahead.dropped_samples) == (15, 0, 0)
+
+
+def test_realtime_capture_flushes_every_flush_interval_of_data(tmp_path: Path) -> None:
+    """Crash safety (issue #16): in real time the log is flushed once the data written
+    since the last flush spans the flush interval (0.1 s by default, one block), so a
+    kill loses at most about a block plus the filter's group delay. The DAQ runs on a
+    manual clock, so the wall clock cannot cause the flushes counted here."""
+    from daq.clock import ManualClock
+
+    assert RIG.daq.flush_interval_s == 0.1 == RIG.daq.block_duration_s
+    daq = FakeStrainDaq(
+        RIG.gauges,
+        RIG.potentiometer,
+        RIG.daq,
+        strain_fn=strain_fn,
+        angle_fn=angle_fn,
+        realtime=True,
+        clock=ManualClock(),
+    )
+    out = tmp_path / "rt.mcap"
+    s = capture_run(RIG, daq, None, out, 3.0, realtime=True)
+    # one flush on opening, one per block from the second (the first block's outputs
+    # span 55 ms), one at the end
+    assert s.flushes >= 30
+    s2 = capture_run(RIG, make_daq(), None, tmp_path / "fast.mcap", 3.0, realtime=False)
+    assert s2.flushes < s.flushes  # faster than real time the wall clock decides
