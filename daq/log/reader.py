@@ -415,7 +415,8 @@ def read_run(
     start_ns, end_ns : int, optional
         Half-open log-time window ``[start_ns, end_ns)`` on the run clock, ns.
     require_samples : bool
-        A log without ``/daq/samples`` messages (in the window) is an error.
+        A log without ``/daq/samples`` messages (in the window), or whose rocker angle
+        or a gauge is null in every sample, is an error.
 
     Raises
     ------
@@ -479,9 +480,12 @@ def read_run(
             + (" in the time window" if start_ns is not None or end_ns is not None else ""),
             suggest_recover=False,
         )
+    samples = _samples_block(t, rows, s)
+    if require_samples:
+        _require_values(p, samples)
     return RunLog(
         path=p,
-        samples=_samples_block(t, rows, s),
+        samples=samples,
         events=ordered_events,
         rig_json=rig_json,
         run_info=run_info,
@@ -489,6 +493,21 @@ def read_run(
         frame_count=int(frame_count),
         sample_sequences=s,
     )
+
+
+def _require_values(p: Path, samples: SampleBlock) -> None:
+    """Each channel holds at least one number (null is the writer's missing value: a
+    channel that is null throughout was never measured)."""
+    channels = [("rocker angle", samples.rocker_angle_rad)] + [
+        (f"gauge {g + 1} strain", samples.strain[:, g]) for g in range(samples.strain.shape[1])
+    ]
+    for name, values in channels:
+        if not np.isfinite(values).any():
+            raise LogError(
+                str(p),
+                f"/daq/samples: the {name} is null in all {len(values)} samples (never measured)",
+                suggest_recover=False,
+            )
 
 
 def _metadata(p: Path, name: str, values: dict[str, str], decode: Any) -> Any:

@@ -465,3 +465,26 @@ def test_a_log_without_samples_is_an_error_for_process(
         err == f"error: {path}: no /daq/samples messages: the DAQ stream (rocker angle "
         "and strains) is missing\n"
     )
+
+
+def test_a_channel_never_measured_is_an_error_for_process(tmp_path: Path) -> None:
+    """null is the writer's missing value (read as NaN): a few are data, a channel that
+    is null throughout was never measured."""
+    path = tmp_path / "run.mcap"
+
+    def gauge3_dead(s: Sample) -> None:
+        s["strain"][2] = None
+
+    samples = []
+    for k in range(N_SAMPLES):
+        s = _sample(k)
+        gauge3_dead(s)
+        if 10 <= k < 20:
+            s["rocker_angle_rad"] = None
+        samples.append((k * PERIOD_NS, k, json.dumps(s).encode()))
+    write_log(path, samples=samples)
+    run = read_run(path)
+    assert np.isnan(run.samples.rocker_angle_rad[10:20]).all()
+    assert np.isfinite(run.samples.rocker_angle_rad[20:]).all()
+    with pytest.raises(LogError, match=r"the gauge 3 strain is null in all 300 samples"):
+        read_run(path, require_samples=True)
