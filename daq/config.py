@@ -103,7 +103,7 @@ class DaqConfig:
     block_duration_s: float = 0.1
     pot_range_v: float = 10.0
     adc_bits: int = 24
-    flush_interval_s: float = 1.0
+    flush_interval_s: float = 0.1
 
     def __post_init__(self) -> None:
         for name in (

@@ -146,6 +146,7 @@ class FakeStrainDaq:
         self._started = False
         self._start_wall_ns = 0
         self._next_block = 0
+        self._t0_ns = 0
 
     @property
     def sample_rate_hz(self) -> float:
@@ -165,8 +166,11 @@ class FakeStrainDaq:
             "realtime": self.realtime,
         }
 
-    def start(self) -> None:
+    def start(self, first_sample_ns: int = 0) -> None:
+        """Start; the first sample is at run-clock time ``first_sample_ns`` (the
+        callables are evaluated at run-clock times)."""
         self._started = True
+        self._t0_ns = int(first_sample_ns)
         self._next_block = 0
         self._start_wall_ns = self._clock.now_ns()
 
@@ -200,7 +204,7 @@ class FakeStrainDaq:
             lag_s = (self._clock.now_ns() - self._start_wall_ns) * 1e-9 - (k + 1) * block_s
             if lag_s > self.buffer_s:
                 lost = int((lag_s - self.buffer_s) / block_s) + 1
-                t = sample_times_ns(k * self.block_size, 1, self._rate_hz)[0]
+                t = sample_times_ns(k * self.block_size, 1, self._rate_hz)[0] + self._t0_ns
                 events.append(self._overrun(t, lost * self.block_size, "reader fell behind"))
                 k += lost
             elif lag_s < 0:
@@ -210,7 +214,7 @@ class FakeStrainDaq:
                 self._clock.sleep_s(-lag_s)
         while k in self.faults.drop_blocks or k in self.faults.overflow_blocks:
             if k in self.faults.overflow_blocks:
-                t = sample_times_ns(k * self.block_size, 1, self._rate_hz)[0]
+                t = sample_times_ns(k * self.block_size, 1, self._rate_hz)[0] + self._t0_ns
                 events.append(self._overrun(t, self.block_size, "buffer overflow"))
             k += 1
         self._next_block = k + 1
@@ -222,8 +226,8 @@ class FakeStrainDaq:
     def _make_block(self, k: int, events: tuple[Event, ...]) -> RawBlock:
         n = self.block_size
         seq0 = k * n
-        t_ns = sample_times_ns(seq0, n, self._rate_hz)
-        t_s = np.arange(seq0, seq0 + n, dtype=np.float64) / self._rate_hz
+        t_ns = sample_times_ns(seq0, n, self._rate_hz) + np.int64(self._t0_ns)
+        t_s = np.arange(seq0, seq0 + n, dtype=np.float64) / self._rate_hz + self._t0_ns * 1e-9
         strain = np.asarray(self._strain_fn(t_s), dtype=np.float64)
         angle = np.asarray(self._angle_fn(t_s), dtype=np.float64)
         if strain.shape != (n, N_GAUGES):

@@ -18,8 +18,10 @@ class StrainDaq(Protocol):
 
     ``sample_rate_hz`` is the rate the hardware really uses (valid after ``start``).
     ``read_block`` returns the next block of raw volts at that rate, with int64 ns times
-    on the run clock (zero = the first sample); raises ``DeviceTimeoutError`` when nothing
-    arrives within ``timeout_s``.
+    on the run clock; raises ``DeviceTimeoutError`` when nothing arrives within
+    ``timeout_s``. ``start(first_sample_ns)`` puts the first sample at that run-clock
+    time: capture starts the acquisition before the run clock's zero (a negative time,
+    the pre-roll) so the anti-alias filter has settled by zero.
     """
 
     backend: str
@@ -27,7 +29,7 @@ class StrainDaq(Protocol):
     @property
     def sample_rate_hz(self) -> float: ...
 
-    def start(self) -> None: ...
+    def start(self, first_sample_ns: int = 0) -> None: ...
 
     def read_block(self, timeout_s: float) -> RawBlock: ...
 

@@ -127,6 +127,7 @@ class NiStrainDaq:
         self._block = max(1, round(daq.block_duration_s * self._rate_hz))
         self._next_seq = 0
         self._start_ns = 0
+        self._t0_ns = 0
 
     @property
     def sample_rate_hz(self) -> float:
@@ -173,7 +174,9 @@ class NiStrainDaq:
             raise
         return task, rate
 
-    def start(self) -> None:
+    def start(self, first_sample_ns: int = 0) -> None:
+        """Configure and start the task; the first sample is at run-clock time
+        ``first_sample_ns`` (capture's pre-roll makes it negative)."""
         errors = _vendor("nidaqmx.errors")
         try:
             self._task, self._rate_hz = self._configure()
@@ -182,6 +185,7 @@ class NiStrainDaq:
         except errors.DaqError as exc:
             raise DeviceError(f"NI-DAQmx: {exc}") from None
         self._next_seq = 0
+        self._t0_ns = int(first_sample_ns)
         self._start_ns = time.monotonic_ns()
         log.info(
             "NI-DAQmx running at %.6g Hz (requested %.6g Hz)",
@@ -207,7 +211,7 @@ class NiStrainDaq:
             self._task.start()
             elapsed = (time.monotonic_ns() - self._start_ns) * 1e-9
             self._next_seq = max(self._next_seq, round(elapsed * self._rate_hz))
-            t = int(sample_times_ns(lost_from, 1, self._rate_hz)[0])
+            t = int(sample_times_ns(lost_from, 1, self._rate_hz)[0]) + self._t0_ns
             events.append(
                 Event(
                     t,
@@ -236,7 +240,7 @@ class NiStrainDaq:
                 clipped.append(i)
         seq0 = self._next_seq
         self._next_seq += len(arr)
-        t_ns = sample_times_ns(seq0, len(arr), self._rate_hz)
+        t_ns = sample_times_ns(seq0, len(arr), self._rate_hz) + np.int64(self._t0_ns)
         return RawBlock(t_ns, volts, seq0, tuple(clipped), tuple(events))
 
     def stop(self) -> None:

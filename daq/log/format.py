@@ -26,9 +26,11 @@ import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.Log_pb2 import Log
+from google.protobuf.message import DecodeError
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from daq.errors import DaqInputError
+from daq.imageinfo import image_encoding, image_size_px
 from daq.records import Event
 
 PROFILE = "beambench"
@@ -120,14 +122,121 @@ def encode_samples(
     return out
 
 
-def decode_sample(data: bytes) -> tuple[int, list[Any]]:
-    """(t_ns, [angle, strain x4, volts x5]) of one sample message."""
-    d = json.loads(data)
+# Bounds of a plausible /daq/samples value, beyond any bench (not a tolerance): a
+# potentiometer turns at most ten times (63 rad), a foil gauge fails below 0.1 m/m, a DAQ
+# input range is at most tens of volts. Values outside are damage, not data.
+MAX_ABS_ANGLE_RAD = 1e3
+MAX_ABS_STRAIN = 1.0
+MAX_ABS_VOLTS = 1e3
+# the largest image a frame may claim (pixels are decoded later: 64 Mpx is 192 MB as RGB)
+MAX_IMAGE_SIDE_PX = 16384
+MAX_IMAGE_PIXELS = 64_000_000
+MAX_LOG_TIME_NS = 2**63 - 1
+_BOUNDS = (MAX_ABS_ANGLE_RAD, *[MAX_ABS_STRAIN] * 4, *[MAX_ABS_VOLTS] * 5)
+
+
+class BadMessageError(ValueError):
+    """A message whose contents break its schema (the reader names the message)."""
+
+
+def _no_constant(name: str) -> Any:
+    raise BadMessageError(f"{name} is not a JSON number")
+
+
+def _number(value: Any, what: str, bound: float) -> float:
+    if value is None:  # the writer's spelling of a missing (non-finite) value
+        return math.nan
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise BadMessageError(f"{what} must be a number or null, got {_kind(value)}")
+    try:
+        x = float(value)
+    except OverflowError:  # an integer beyond any float
+        x = math.inf
+    if not math.isfinite(x) or abs(x) > bound:
+        raise BadMessageError(f"{what} = {value!r} is outside +-{bound:g}")
+    return x
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return f"the string {value[:20]!r}"
+    if value is None:
+        return "null"
+    if isinstance(value, list | dict):
+        return f"a JSON {'array' if isinstance(value, list) else 'object'}"
+    return repr(value)
+
+
+def _count(value: Any, what: str, n: int) -> list[Any]:
+    if not isinstance(value, list):
+        raise BadMessageError(f"{what} must be an array of {n} numbers, got {_kind(value)}")
+    if len(value) != n:
+        raise BadMessageError(f"{what} must hold {n} numbers, got {len(value)}")
+    return value
+
+
+def _integer(value: Any, what: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise BadMessageError(f"{what} must be an integer, got {_kind(value)}")
+    if not lo <= value <= hi:
+        raise BadMessageError(f"{what} = {value} is outside [{lo}, {hi}]")
+    return value
+
+
+def decode_sample(data: bytes) -> tuple[int, list[float]]:
+    """(t_ns, [angle, strain x4, volts x5]) of one sample message, checked against the
+    schema: a JSON object with an integer timestamp (sec >= 0, 0 <= nsec < 1e9), one
+    angle, four strains and five volts, each a finite number within the bounds above
+    or null (read as NaN). Raises ``BadMessageError`` (a ``ValueError``)."""
+    try:
+        d = json.loads(data, parse_constant=_no_constant)
+    except UnicodeDecodeError as exc:
+        raise BadMessageError(f"not UTF-8 JSON ({exc.reason} at byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise BadMessageError(f"not JSON ({exc.msg} at byte {exc.pos})") from None
+    except ValueError as exc:  # an integer too long to convert
+        raise BadMessageError(f"not JSON ({exc})") from None
+    except RecursionError:
+        raise BadMessageError("not JSON (nested too deeply)") from None
+    if not isinstance(d, dict):
+        raise BadMessageError(f"must be a JSON object, got {_kind(d)}")
+    for key in ("timestamp", "rocker_angle_rad", "strain", "raw_volts"):
+        if key not in d:
+            raise BadMessageError(f"lacks '{key}'")
     ts = d["timestamp"]
-    values = [d["rocker_angle_rad"], *d["strain"], *d["raw_volts"]]
-    if len(values) != 10:
-        raise ValueError("a DaqSample needs 1 angle, 4 strains and 5 volts")
-    return int(ts["sec"]) * 1_000_000_000 + int(ts["nsec"]), values
+    if not isinstance(ts, dict) or "sec" not in ts or "nsec" not in ts:
+        raise BadMessageError(f"timestamp must be an object with sec and nsec, got {_kind(ts)}")
+    sec = _integer(ts["sec"], "timestamp.sec", 0, MAX_LOG_TIME_NS // 1_000_000_000 - 1)
+    nsec = _integer(ts["nsec"], "timestamp.nsec", 0, 999_999_999)
+    angle, strain, volts = d["rocker_angle_rad"], d["strain"], d["raw_volts"]
+    if type(strain) is list and type(volts) is list and len(strain) == 4 and len(volts) == 5:
+        values = [angle, *strain, *volts]
+        # the common case, ten floats within bounds (NaN and inf fail the comparison)
+        if all(type(x) is float and -b <= x <= b for x, b in zip(values, _BOUNDS, strict=True)):
+            return sec * 1_000_000_000 + nsec, values
+    values = [_number(d["rocker_angle_rad"], "rocker_angle_rad", MAX_ABS_ANGLE_RAD)]
+    strain = _count(d["strain"], "strain", 4)
+    volts = _count(d["raw_volts"], "raw_volts", 5)
+    values += [_number(x, f"strain[{i}]", MAX_ABS_STRAIN) for i, x in enumerate(strain)]
+    values += [_number(x, f"raw_volts[{i}]", MAX_ABS_VOLTS) for i, x in enumerate(volts)]
+    return sec * 1_000_000_000 + nsec, values
+
+
+def _parse(message: Any, data: bytes, what: str) -> Any:
+    try:
+        message.ParseFromString(data)
+    except DecodeError as exc:
+        raise BadMessageError(f"not a {what} protobuf ({exc})") from None
+    return message
+
+
+def _stamp_ns(ts: Any) -> int:
+    """The protobuf timestamp in ns (checked: non-negative, nanos within a second)."""
+    if ts.seconds < 0 or not 0 <= ts.nanos < 1_000_000_000:
+        raise BadMessageError(f"timestamp {ts.seconds} s {ts.nanos} ns is not a run-clock time")
+    return int(ts.seconds) * 1_000_000_000 + int(ts.nanos)
 
 
 def _set_timestamp(ts: Any, t_ns: int) -> None:
@@ -142,10 +251,34 @@ def encode_image(t_ns: int, data: bytes, encoding: str) -> bytes:
     return msg.SerializeToString()
 
 
-def decode_image(data: bytes) -> tuple[int, bytes, str]:
-    msg = CompressedImage()
-    msg.ParseFromString(data)
-    return msg.timestamp.seconds * 1_000_000_000 + msg.timestamp.nanos, msg.data, msg.format
+def decode_image(data: bytes) -> tuple[int, bytes, str, int, int]:
+    """(t_ns, image bytes, "jpeg" | "png", width_px, height_px) of one
+    ``foxglove.CompressedImage``, checked: a protobuf that parses, a JPEG or PNG payload
+    whose signature matches ``format``, a header with a size within the limits above.
+    Raises ``BadMessageError``."""
+    msg = _parse(CompressedImage(), data, "foxglove.CompressedImage")
+    t_ns = _stamp_ns(msg.timestamp)
+    kind = image_encoding(msg.data)
+    if kind is None:
+        raise BadMessageError(
+            f"the image ({len(msg.data)} bytes, format {msg.format[:20]!r}) is not a JPEG or PNG"
+        )
+    if msg.format != kind:
+        raise BadMessageError(f"format says {msg.format[:20]!r} but the image is a {kind}")
+    try:
+        width, height = image_size_px(msg.data)
+    except DaqInputError as exc:
+        raise BadMessageError(str(exc).removeprefix("data: ")) from None
+    if not (
+        1 <= width <= MAX_IMAGE_SIDE_PX
+        and 1 <= height <= MAX_IMAGE_SIDE_PX
+        and width * height <= MAX_IMAGE_PIXELS
+    ):
+        raise BadMessageError(
+            f"the {kind} header claims {width} x {height} px (at most {MAX_IMAGE_SIDE_PX} a "
+            f"side and {MAX_IMAGE_PIXELS / 1e6:g} Mpx)"
+        )
+    return t_ns, msg.data, kind, width, height
 
 
 def encode_event(event: Event) -> bytes:
@@ -155,8 +288,14 @@ def encode_event(event: Event) -> bytes:
 
 
 def decode_event(data: bytes) -> Event:
-    msg = Log()
-    msg.ParseFromString(data)
+    """One ``foxglove.Log`` as an ``Event`` (levels other than warning and error read as
+    info; a negative time is allowed: the writer logs events before the run clock's zero
+    at log time 0). Raises ``BadMessageError``."""
+    msg = _parse(Log(), data, "foxglove.Log")
+    if not 0 <= msg.timestamp.nanos < 1_000_000_000:
+        raise BadMessageError(f"timestamp nanos {msg.timestamp.nanos} outside [0, 1e9)")
+    if not msg.name:
+        raise BadMessageError("an event needs a name")
     t_ns = msg.timestamp.seconds * 1_000_000_000 + msg.timestamp.nanos
     return Event(t_ns, PROTO_TO_LEVEL.get(msg.level, "info"), msg.name, msg.message)
 
@@ -195,8 +334,15 @@ def encode_camera_info(info: dict[str, Any], t_ns: int = 0) -> bytes:
 
 
 def decode_camera_info(data: bytes) -> dict[str, Any]:
-    msg = CameraCalibration()
-    msg.ParseFromString(data)
+    """``foxglove.CameraCalibration`` content, checked: a size within the image limits,
+    nine finite numbers in K, finite D. Raises ``BadMessageError``."""
+    msg = _parse(CameraCalibration(), data, "foxglove.CameraCalibration")
+    if not (1 <= msg.width <= MAX_IMAGE_SIDE_PX and 1 <= msg.height <= MAX_IMAGE_SIDE_PX):
+        raise BadMessageError(f"camera size {msg.width} x {msg.height} px is not plausible")
+    if len(msg.K) != 9 or not all(math.isfinite(k) for k in msg.K):
+        raise BadMessageError(f"K must hold 9 finite numbers, got {list(msg.K)[:12]}")
+    if not all(math.isfinite(d) for d in msg.D):
+        raise BadMessageError("D holds a non-finite number")
     return {
         "width": int(msg.width),
         "height": int(msg.height),
@@ -224,7 +370,39 @@ def encode_metadata(values: dict[str, Any]) -> dict[str, str]:
 
 
 def decode_metadata(values: dict[str, str]) -> dict[str, Any]:
+    """The values of a metadata record (``encode_metadata``'s inverse). Raises
+    ``BadMessageError`` naming the key whose value is not the JSON it claims to be."""
     json_keys = set(filter(None, values.get("_json_keys", "").split(",")))
-    return {
-        k: (json.loads(v) if k in json_keys else v) for k, v in values.items() if k != "_json_keys"
-    }
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        if key == "_json_keys":
+            continue
+        if key in json_keys:
+            try:
+                out[key] = json.loads(value, parse_constant=_no_constant)
+            except ValueError as exc:
+                raise BadMessageError(f"{key!r} is not valid JSON ({exc})") from None
+            except RecursionError:
+                raise BadMessageError(f"{key!r} is JSON nested too deeply") from None
+        else:
+            out[key] = value
+    return out
+
+
+def decode_rig_record(values: dict[str, str]) -> str:
+    """The rig configuration of a ``rig`` metadata record as a JSON string: the
+    ``json`` entry, checked to be a JSON object (unknown keys are the rig loader's
+    business, not the log's); "" when the record has no ``json`` entry. The one place
+    the log's rig record is interpreted. Raises ``BadMessageError``."""
+    text = values.get("json")
+    if text is None:
+        return ""
+    try:
+        rig = json.loads(text, parse_constant=_no_constant)
+    except ValueError as exc:
+        raise BadMessageError(f"'json' is not valid JSON ({exc})") from None
+    except RecursionError:
+        raise BadMessageError("'json' is JSON nested too deeply") from None
+    if not isinstance(rig, dict):
+        raise BadMessageError(f"'json' must be a JSON object, got {_kind(rig)}")
+    return text

@@ -11,12 +11,12 @@ from pathlib import Path
 
 from mcap.exceptions import EndOfFile
 from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from daq.errors import LogError
-from daq.log.format import PROFILE
-from daq.log.reader import DAMAGED_DATA_ERRORS
+from daq.log.format import PROFILE, TOPIC_SAMPLES
+from daq.log.reader import DAMAGED_DATA_ERRORS, read_run, scan_log
 
 log = logging.getLogger(__name__)
 
@@ -54,12 +54,16 @@ def recover_log(
     Reads the file front to back (no index needed), keeps the header, metadata, schemas,
     channels and every message of every chunk that is complete and passes its CRC, and
     stops at the first truncated record. ``out_path`` must not exist; it is written to a
-    temporary file first, so a failure never leaves a half-written output.
+    temporary file first and read back with the verifying reader (``read_run`` and
+    ``scan_log``), so a failure never leaves a half-written or unreadable output.
 
     Raises
     ------
     LogError
-        The input is missing, not MCAP, or not a beambench log.
+        The input is missing, not MCAP, or not a beambench log; nothing usable could be
+        restored (no message, no ``/daq/samples``, or what was restored fails
+        verification, e.g. a message whose contents were damaged before they were
+        written); or the data-section CRC shows damage outside the chunks.
     FileExistsError
         ``out_path`` exists.
     """
@@ -83,7 +87,7 @@ def recover_log(
     chunks = bad_chunks = 0
     complete = truncated = False
     with f:
-        reader = StreamReader(f, emit_chunks=True, record_size_limit=size + 1)
+        reader = StreamReader(f, emit_chunks=True, validate_crcs=True, record_size_limit=size + 1)
         try:
             for record in reader.records:
                 if isinstance(record, Header):
@@ -114,6 +118,20 @@ def recover_log(
                 elif isinstance(record, DataEnd | Footer):
                     complete = True
                     break
+        except CRCValidationError as exc:
+            if not isinstance(exc.record, DataEnd):
+                truncated = True
+            elif not bad_chunks:
+                # every chunk passed its own CRC, so the damage is in a record that has
+                # no CRC of its own (metadata, schema, channel): copying would launder it
+                raise LogError(
+                    str(src),
+                    "damaged: the data-section CRC fails but every chunk passes its own, so "
+                    "a metadata, schema or channel record changed; recover cannot tell which",
+                    suggest_recover=False,
+                ) from None
+            else:  # the unreadable chunks explain it; their messages are dropped
+                complete = True
         except _END_OF_DATA as exc:
             if header is None:
                 raise LogError(
@@ -134,7 +152,12 @@ def recover_log(
     tmp = Path(tmp_name)
     try:
         with os.fdopen(fd, "wb") as out:
-            writer = Writer(out, chunk_size=4 * 1024 * 1024, compression=CompressionType.ZSTD)
+            writer = Writer(
+                out,
+                chunk_size=4 * 1024 * 1024,
+                compression=CompressionType.ZSTD,
+                enable_data_crcs=True,
+            )
             writer.start(profile=header.profile, library=header.library)
             schema_ids = {
                 sid: writer.register_schema(s.name, s.encoding, s.data)
@@ -163,6 +186,7 @@ def recover_log(
             writer.finish()
             out.flush()
             os.fsync(out.fileno())
+        _check_usable(src, tmp, kept, topic_counts, chunks, bad_chunks)
         if dst.exists():
             raise FileExistsError(f"{dst}: already exists; choose another --out")
         os.replace(tmp, dst)
@@ -183,3 +207,38 @@ def recover_log(
         last_log_time_ns=max(times) if times else None,
         bytes_in=size,
     )
+
+
+def _check_usable(
+    src: Path,
+    restored: Path,
+    kept: int,
+    topic_counts: Counter[str],
+    chunks: int,
+    bad_chunks: int,
+) -> None:
+    """Refuse an output that holds nothing usable or does not read back verified."""
+    lost = f"{chunks} chunk(s) read, {bad_chunks} unreadable"
+    if kept == 0:
+        raise LogError(
+            str(src),
+            f"nothing to recover: no message survived ({lost}; the writer died before "
+            "its first flush, or the data is damaged)",
+            suggest_recover=False,
+        )
+    if topic_counts[TOPIC_SAMPLES] == 0:
+        found = ", ".join(f"{n} on {t}" for t, n in sorted(topic_counts.items()))
+        raise LogError(
+            str(src),
+            f"nothing usable to recover: no /daq/samples message survived (only {found}; {lost})",
+            suggest_recover=False,
+        )
+    try:
+        read_run(restored, require_samples=True)
+        scan_log(restored)
+    except LogError as exc:
+        raise LogError(
+            str(src),
+            f"the restored log does not read back: {exc.problem}",
+            suggest_recover=False,
+        ) from None

@@ -114,6 +114,7 @@ class LogWriter:
                 self._file,
                 chunk_size=_CHUNK_SIZE,
                 compression=mode if mode is not None else CompressionType.NONE,
+                enable_data_crcs=True,  # the metadata records have no other check
             )
             self._mcap.start(profile=PROFILE, library=f"beambench {software_version()}")
             self._channels = self._register_channels()

@@ -1,7 +1,9 @@
 """The capture loop: DAQ + camera on one run clock into a crash-safe MCAP log.
 
-The DAQ's first sample is run-clock zero. The main thread reads DAQ blocks, filters and
-decimates them to the 400 Hz stream and writes them; a worker thread reads the camera
+Run-clock zero is the log's first sample: the DAQ starts a pre-roll earlier (the
+anti-alias filter's settling, see :func:`preroll`), so the log holds ``duration x 400``
+samples from t = 0. The main thread reads DAQ blocks, filters and decimates them to the
+400 Hz stream and writes them; a worker thread reads the camera
 into a queue. Frames are written once the DAQ stream has reached their time, so the
 file stays nearly in log-time order. Every loss is an event in the log: sample gaps,
 overruns, dropped or late frames, clipping, device errors. Ctrl-C finishes the file;
@@ -27,7 +29,7 @@ from daq.antialias import AntiAliasDesign, design_antialias
 from daq.errors import DaqError, DeviceTimeoutError
 from daq.log import LogWriter
 from daq.protocols import Camera, StrainDaq
-from daq.records import Event, Frame
+from daq.records import Event, Frame, SampleBlock, sample_times_ns
 from daq.stream import SampleStream
 from pipelines import __version__
 from pipelines.errors import BeambenchError
@@ -160,6 +162,40 @@ class _CameraReader(threading.Thread):
             self._put(None)
 
 
+def preroll(design: AntiAliasDesign) -> tuple[int, int]:
+    """``(preroll_ns, first_output_sequence)``: how long before the run clock's zero the
+    acquisition starts, and the decimator's sequence number of the output sample at 0.
+
+    The filter withholds its outputs for ``design.settle_s()`` after a (re)start; the
+    first it emits is the acquisition sample ``n0``, the first settled one on the
+    decimation grid, stamped ``t(n0) - group delay``. Starting the acquisition at
+    ``-(t(n0) - group delay)`` puts that sample at exactly t = 0 (integer ns), and every
+    later output on the 400 Hz grid from there.
+    """
+    d = design.decimation
+    settle_n = math.ceil(design.settle_s() * design.acquisition_rate_hz)
+    n0 = -(-settle_n // d) * d
+    t0_ns = int(sample_times_ns(n0, 1, design.acquisition_rate_hz)[0])
+    return t0_ns - design.group_delay_ns, n0 // d
+
+
+def _first_output_sequence(design: AntiAliasDesign, preroll_ns: int) -> int:
+    """The decimator's sequence number of the first output at or after t = 0 when the
+    acquisition starts ``preroll_ns`` before zero (the real rate may differ from the
+    requested one the pre-roll was computed for)."""
+    d = design.decimation
+    settle_n = math.ceil(design.settle_s() * design.acquisition_rate_hz)
+    n = -(-settle_n // d) * d
+    while (
+        int(sample_times_ns(n, 1, design.acquisition_rate_hz)[0])
+        - preroll_ns
+        - design.group_delay_ns
+        < 0
+    ):
+        n += d
+    return n // d
+
+
 def _event(t_ns: int, level: str, name: str, message: str) -> Event:
     return Event(max(0, int(t_ns)), level, name, message)
 
@@ -182,6 +218,7 @@ def _run_info(
     duration_s: float,
     realtime: bool,
     start_utc: datetime,
+    preroll_ns: int,
 ) -> dict[str, Any]:
     cam = camera_device.describe() if camera_device is not None else None
     return {
@@ -199,7 +236,9 @@ def _run_info(
         "duration_requested_s": float(duration_s),
         "realtime": bool(realtime),
         "rig_source": rig.source,
-        "run_clock": "int64 ns since the DAQ's first sample; sample times have the "
+        "preroll_s": preroll_ns * 1e-9,
+        "run_clock": "int64 ns since the log's first sample; the DAQ started preroll_s "
+        "earlier so the anti-alias filter had settled by then; sample times have the "
         "anti-alias group delay removed; frames are stamped at mid-exposure by the camera",
     }
 
@@ -257,8 +296,10 @@ def capture_run(
     writer: LogWriter | None = None
     reader: _CameraReader | None = None
     try:
-        design, start_utc = _start_devices(rig, daq_device, camera_device)
-        info = _run_info(rig, daq_device, camera_device, design, duration_s, realtime, start_utc)
+        design, start_utc, preroll_ns = _start_devices(rig, daq_device, camera_device)
+        info = _run_info(
+            rig, daq_device, camera_device, design, duration_s, realtime, start_utc, preroll_ns
+        )
         try:
             writer = LogWriter(
                 out,
@@ -276,7 +317,20 @@ def capture_run(
             reader = _CameraReader(camera_device, end_ns, realtime, period)
             reader.start()
         try:
-            _loop(rig, daq_device, reader, writer, design, end_ns, duration_s, c, progress)
+            first_seq = _first_output_sequence(design, preroll_ns)
+            _loop(
+                rig,
+                daq_device,
+                reader,
+                writer,
+                design,
+                first_seq,
+                end_ns,
+                duration_s,
+                c,
+                progress,
+                realtime=realtime,
+            )
             writer.write_event(_event(end_ns, "info", "stop", "run finished"))
         except KeyboardInterrupt:
             interrupted = True
@@ -345,11 +399,16 @@ def capture_run(
 
 def _start_devices(
     rig: Rig, daq_device: StrainDaq, camera_device: Camera | None
-) -> tuple[AntiAliasDesign, datetime]:
-    """Start the DAQ (run-clock zero), design the filter at its real rate, start the
-    camera. Device problems become ``BeambenchError``."""
+) -> tuple[AntiAliasDesign, datetime, int]:
+    """Start the DAQ a pre-roll before run-clock zero (computed at the requested rate),
+    design the filter at its real rate, start the camera. Returns the design, the start
+    time and the pre-roll (ns). Device problems become ``BeambenchError``."""
     try:
-        daq_device.start()
+        preroll_ns, _ = preroll(design_antialias(rig.daq, rig.daq.acquisition_rate_hz))
+    except ValueError as exc:
+        raise BeambenchError(f"DAQ: {exc}") from None
+    try:
+        daq_device.start(first_sample_ns=-preroll_ns)
     except DaqError as exc:
         raise BeambenchError(f"DAQ: {exc}") from None
     start_utc = datetime.now(UTC)
@@ -362,7 +421,7 @@ def _start_devices(
             camera_device.start()
         except DaqError as exc:
             raise BeambenchError(f"camera: {exc}") from None
-    return design, start_utc
+    return design, start_utc, preroll_ns
 
 
 def _last_time(writer: LogWriter) -> int:
@@ -382,12 +441,27 @@ def _loop(
     reader: _CameraReader | None,
     writer: LogWriter,
     design: AntiAliasDesign,
+    first_seq: int,
     end_ns: int,
     duration_s: float,
     c: _Counters,
     progress: ProgressFn | None,
+    *,
+    realtime: bool,
 ) -> None:
+    """Read, filter and write until the stream has reached ``end_ns``: the acquisition
+    runs a group delay past it, since each output is stamped a group delay before the
+    input it comes from. Output sequences are renumbered from ``first_seq`` (the sample
+    at t = 0) to 0."""
     stream = SampleStream(design, rig.gauges, rig.potentiometer)
+    settle_ms = design.settle_s() * 1e3
+    stop_ns = end_ns + design.group_delay_ns
+    # In real time, flush by the data, not only by the wall clock: once what was written
+    # since the last flush spans the flush interval. Blocks arrive one block duration
+    # apart, so a wall-clock test alone (elapsed >= interval) skips a flush whenever a
+    # block comes a little early. Faster than real time (a synthetic capture) the wall
+    # clock decides, or a 60 s run written in 3 s would fsync 600 times.
+    flush_ns = round(rig.daq.flush_interval_s * 1e9) if realtime else None
     timeout_s = max(1.0, 5.0 * rig.daq.block_duration_s)
     expected_seq = 0
     pending: list[Frame] = []
@@ -411,7 +485,9 @@ def _loop(
                     t_first,
                     "warning",
                     "dropped_samples",
-                    f"{gap} samples at {rate:g} Hz missing before sample {block.first_sequence}",
+                    f"{gap} samples at {rate:g} Hz missing before sample {block.first_sequence}; "
+                    f"the filter restarts on the new data and withholds its {settle_ms:.1f} ms "
+                    "of settling",
                 )
             )
         expected_seq = block.first_sequence + len(block)
@@ -423,16 +499,27 @@ def _loop(
                 _event(t_first, "warning", "clipping", f"ADC range reached on {names}")
             )
         clipped_before = block.clipped_channels
-        samples = stream.process(block)
+        out = stream.process(block)
+        samples = SampleBlock(
+            out.t_ns,
+            out.rocker_angle_rad,
+            out.strain,
+            out.raw_volts,
+            out.first_sequence - first_seq,
+        )
         keep = int((samples.t_ns < end_ns).sum())
         writer.write_samples(samples.slice(0, keep) if keep < len(samples) else samples)
         if reader is not None:
             reader.now_ns = t_last
             camera_done = _drain(reader, writer, pending, t_last, c, wait=False) or camera_done
-        writer.maybe_flush()
+        last, done = writer.last_log_time_ns, writer.last_flushed_log_time_ns
+        if flush_ns is not None and last is not None and (done is None or last - done >= flush_ns):
+            writer.flush()
+        else:
+            writer.maybe_flush()
         if progress is not None:
-            progress(min(duration_s, (t_last + 1e9 / rate) * 1e-9), duration_s)
-        if t_last + 1e9 / rate >= end_ns:
+            progress(max(0.0, min(duration_s, (t_last + 1e9 / rate) * 1e-9)), duration_s)
+        if t_last + 1e9 / rate >= stop_ns:
             break
     if reader is not None and not camera_done:
         # In real time the camera has 10 s to hand over its last frames; a fake camera

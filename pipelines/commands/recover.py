@@ -7,7 +7,10 @@ from pathlib import Path
 
 from pipelines.errors import BeambenchError
 
-HELP = "restore every flushed message of a broken log into a new file"
+HELP = (
+    "restore every flushed message of a broken log into a new file, read back and verified "
+    "(exit 2 when nothing usable survives)"
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -30,7 +33,10 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise BeambenchError(f"{out}: cannot write: {exc.strerror or exc}") from None
     state = "complete (had its footer)" if s.complete else "truncated" if s.truncated else "open"
-    print(f"recovered {s.messages} messages from {args.log} ({state}) into {s.out_path}")
+    print(
+        f"recovered {s.messages} messages from {args.log} ({state}) into {s.out_path} "
+        "(read back and verified)"
+    )
     for topic, n in sorted(s.messages_by_topic.items()):
         print(f"  {topic:<16} {n}")
     if s.last_log_time_ns is not None:

@@ -87,7 +87,7 @@ class Processed:
 
 def load_log(path: Path) -> Any:
     try:
-        return read_run(path)
+        return read_run(path, require_samples=True)
     except LogError as exc:
         raise BeambenchError(str(exc)) from None
     except FileNotFoundError:

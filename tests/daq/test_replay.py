@@ -25,7 +25,11 @@ def _log(path: Path) -> tuple[SampleBlock, list[Frame], list[Event]]:
     seq = np.concatenate([np.arange(0, 200), np.arange(210, 410)])  # a gap of 10 samples
     rng = np.random.default_rng(0)
     samples = SampleBlock(
-        seq * 2_500_000, rng.normal(size=n), rng.normal(size=(n, 4)), rng.normal(size=(n, 5)), 0
+        seq * 2_500_000,
+        rng.normal(size=n),
+        rng.normal(size=(n, 4)) * 1e-4,  # m/m: strains beyond 1 are refused as damage
+        rng.normal(size=(n, 5)),
+        0,
     )
     frames = [Frame(33_000_000 + k * 66_666_667, k, JPEG, "jpeg", 64, 48) for k in range(15)]
     events = [

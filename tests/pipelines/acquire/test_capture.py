@@ -9,13 +9,13 @@ import cv2
 import numpy as np
 import pytest
 
-from daq.antialias import design_antialias
+from daq.antialias import SETTLE_REL, design_antialias
 from daq.fakes import CameraFaults, DaqFaults, FakeCamera, FakeStrainDaq
 from daq.log import iter_frames, read_run
 from daq.records import Event, Frame, SampleBlock
 from daq.replay import replay_records
 from daq.stream import SampleStream
-from pipelines.acquire.capture import capture_run
+from pipelines.acquire.capture import capture_run, preroll
 from pipelines.cli import main
 from pipelines.errors import BeambenchError
 from pipelines.rig import Rig, load_rig
@@ -67,13 +67,15 @@ def make_camera(**kw: object) -> FakeCamera:
 
 
 def expected_samples(n_blocks: int, rig: Rig = RIG) -> SampleBlock:
-    """The 400 Hz stream computed directly from an identical fake (no log involved)."""
+    """The 400 Hz stream computed directly from an identical fake (no log involved),
+    started the capture's pre-roll before zero, from the sample at t = 0 numbered 0."""
+    design = design_antialias(rig.daq, rig.daq.acquisition_rate_hz)
+    preroll_ns, _ = preroll(design)
     daq = make_daq(rig)
-    daq.start()
-    stream = SampleStream(
-        design_antialias(rig.daq, daq.sample_rate_hz), rig.gauges, rig.potentiometer
-    )
-    return SampleBlock.concatenate([stream.process(daq.read_block(1.0)) for _ in range(n_blocks)])
+    daq.start(first_sample_ns=-preroll_ns)
+    stream = SampleStream(design, rig.gauges, rig.potentiometer)
+    got = SampleBlock.concatenate([stream.process(daq.read_block(1.0)) for _ in range(n_blocks)])
+    return SampleBlock(got.t_ns, got.rocker_angle_rad, got.strain, got.raw_volts, 0)
 
 
 def test_capture_then_replay_gives_identical_records(tmp_path: Path) -> None:
@@ -81,10 +83,13 @@ def test_capture_then_replay_gives_identical_records(tmp_path: Path) -> None:
     info = {"width": 64, "height": 48, "K": [90.0, 0, 31.5, 0, 90.0, 23.5, 0, 0, 1]}
     s = capture_run(RIG, make_daq(), make_camera(), out, 2.0, realtime=False, camera_info=info)
     run = read_run(out)
-    want = expected_samples(20)
+    want = expected_samples(21).slice(0, 800)
     assert run.samples == want  # bit-identical, group delay already removed from times
-    # the filter's first 45 ms (settling; it covers the 11.5 ms of group delay) are withheld
-    assert s.samples == len(want) == 800 - 18
+    # the acquisition starts the filter's settling (45 ms, less its 11.5 ms of group
+    # delay) before zero: the log holds duration x 400 samples from t = 0 (issue #16;
+    # it used to withhold the first 18)
+    assert s.samples == len(want) == 800
+    np.testing.assert_array_equal(run.samples.t_ns, np.arange(800) * 2_500_000)
     cam = make_camera()
     cam.start()
     truth = [cam.read_frame(1.0) for _ in range(30)]
@@ -104,13 +109,50 @@ def test_capture_then_replay_gives_identical_records(tmp_path: Path) -> None:
     assert [r for r in records if isinstance(r, Event)] == run.events
 
 
+def test_the_log_starts_settled_at_zero(tmp_path: Path) -> None:
+    """The pre-roll is the filter's settling: the first samples equal those of a run
+    pre-rolled a whole second longer (on the same sample grid; no noise, so that the
+    two runs see the same volts), to the settling criterion: a ramp's error below
+    SETTLE_REL x the group delay x its slope."""
+
+    def quiet() -> FakeStrainDaq:
+        return FakeStrainDaq(
+            RIG.gauges, RIG.potentiometer, RIG.daq, strain_fn=strain_fn, angle_fn=angle_fn
+        )
+
+    out = tmp_path / "run.mcap"
+    capture_run(RIG, quiet(), None, out, 0.5, realtime=False)
+    run = read_run(out)
+    assert len(run.samples) == 200 and run.samples.t_ns[0] == 0
+    design = design_antialias(RIG.daq, 2000.0)
+    preroll_ns, _ = preroll(design)
+    daq = quiet()
+    daq.start(first_sample_ns=-preroll_ns - 1_000_000_000)
+    stream = SampleStream(design, RIG.gauges, RIG.potentiometer)
+    long = SampleBlock.concatenate([stream.process(daq.read_block(1.0)) for _ in range(16)])
+    long = long.slice(int(np.searchsorted(long.t_ns, 0)), len(long)).slice(0, 200)
+    np.testing.assert_array_equal(run.samples.t_ns, long.t_ns)
+    t = np.arange(-2000, 2000) / 2000.0
+    slope_rad_s = float(np.max(np.abs(np.gradient(angle_fn(t), t))))
+    bound = SETTLE_REL * design.group_delay_s * slope_rad_s
+    err = np.abs(run.samples.rocker_angle_rad - long.rocker_angle_rad)
+    assert err.max() <= bound
+    assert err[-40:].max() < 1e-3 * bound  # long settled: the two runs agree
+
+
 def test_losses_become_events_and_counts(tmp_path: Path) -> None:
     out = tmp_path / "run.mcap"
     daq = make_daq(faults=DaqFaults(drop_blocks=(3,), overflow_blocks=(7,)))
     cam = make_camera(faults=CameraFaults(drop_frames=(4, 5, 6)))
     s = capture_run(RIG, daq, cam, out, 1.5, realtime=False)
-    names = [e.name for e in read_run(out).events]
+    run = read_run(out)
+    names = [e.name for e in run.events]
     assert names.count("dropped_samples") == 2 and names.count("overrun") == 1
+    # a gap mid-run restarts the filter: its settling is withheld and said so
+    drop = next(e for e in run.events if e.name == "dropped_samples")
+    assert drop.message.endswith("withholds its 45.0 ms of settling")
+    after = run.samples.t_ns[run.samples.t_ns > drop.t_ns][0]
+    assert after - drop.t_ns >= 45_000_000 - 11_507_910
     assert names.count("dropped_frames") == 1
     assert (s.dropped_samples, s.overruns, s.dropped_frames) == (400, 1, 3)
     assert s.frames == 22 - 3
@@ -143,7 +185,9 @@ def test_device_errors_end_or_degrade_the_run_cleanly(tmp_path: Path) -> None:
             realtime=False,
         )
     run = read_run(out)  # finished properly: readable without recover
-    assert len(run.samples) == 5 * 40 - 18  # the filter's first 45 ms are withheld
+    # five blocks acquired from -33.5 ms (the pre-roll): outputs up to 0.5 s less the
+    # pre-roll and the 11.5 ms group delay
+    assert len(run.samples) == 5 * 40 - 18
     assert [e.name for e in run.events][-2:] == ["device_error", "stop"]
     s = capture_run(
         RIG,
@@ -153,7 +197,7 @@ def test_device_errors_end_or_degrade_the_run_cleanly(tmp_path: Path) -> None:
         1.0,
         realtime=False,
     )
-    assert s.frames == 3 and s.device_errors == 3 and s.samples == 400 - 18
+    assert s.frames == 3 and s.device_errors == 3 and s.samples == 400
 
 
 def test_output_path_problems_are_clear_errors(tmp_path: Path) -> None:
@@ -174,7 +218,7 @@ def test_realtime_capture_keeps_up_without_drops(tmp_path: Path) -> None:
         RIG, make_daq(realtime=True), make_camera(realtime=True), out, 0.6, realtime=True
     )
     assert (s.dropped_samples, s.dropped_frames, s.overruns) == (0, 0, 0)
-    assert s.samples == 240 - 18 and s.frames == 9
+    assert s.samples == 240 and s.frames == 9
     # paced: a realtime capture cannot finish before its duration (how fast it keeps up
     # under load is measured by `beambench bench daq`, not asserted here)
     assert s.wall_time_s > 0.55
@@ -259,3 +303,29 @@ def test_slow_renderer_drops_frames_honestly_unless_rendered_ahead(tmp_path: Pat
         realtime=True,
     )
     assert (ahead.frames, ahead.dropped_frames, ahead.dropped_samples) == (15, 0, 0)
+
+
+def test_realtime_capture_flushes_every_flush_interval_of_data(tmp_path: Path) -> None:
+    """Crash safety (issue #16): in real time the log is flushed once the data written
+    since the last flush spans the flush interval (0.1 s by default, one block), so a
+    kill loses at most about a block plus the filter's group delay. The DAQ runs on a
+    manual clock, so the wall clock cannot cause the flushes counted here."""
+    from daq.clock import ManualClock
+
+    assert RIG.daq.flush_interval_s == 0.1 == RIG.daq.block_duration_s
+    daq = FakeStrainDaq(
+        RIG.gauges,
+        RIG.potentiometer,
+        RIG.daq,
+        strain_fn=strain_fn,
+        angle_fn=angle_fn,
+        realtime=True,
+        clock=ManualClock(),
+    )
+    out = tmp_path / "rt.mcap"
+    s = capture_run(RIG, daq, None, out, 3.0, realtime=True)
+    # one flush on opening, one per block from the second (the first block's outputs
+    # span 55 ms), one at the end
+    assert s.flushes >= 30
+    s2 = capture_run(RIG, make_daq(), None, tmp_path / "fast.mcap", 3.0, realtime=False)
+    assert s2.flushes < s.flushes  # faster than real time the wall clock decides

@@ -18,6 +18,7 @@ from daq.fakes import FakeStrainDaq
 from daq.log import read_run, recover_log
 from daq.records import SampleBlock
 from daq.stream import SampleStream
+from pipelines.acquire.capture import preroll
 from pipelines.rig import Rig, load_rig
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -106,9 +107,15 @@ def _expected(n_blocks: int, rig: Rig) -> SampleBlock:
         pot_noise_v=5e-4,
         seed=11,
     )
-    daq.start()
-    stream = SampleStream(design_antialias(rig.daq, 2000.0), rig.gauges, rig.potentiometer)
-    return SampleBlock.concatenate([stream.process(daq.read_block(1.0)) for _ in range(n_blocks)])
+    design = design_antialias(rig.daq, 2000.0)
+    preroll_ns, first = preroll(design)  # as capture does: the stream starts at t = 0
+    daq.start(first_sample_ns=-preroll_ns)
+    stream = SampleStream(design, rig.gauges, rig.potentiometer)
+    got = SampleBlock.concatenate([stream.process(daq.read_block(1.0)) for _ in range(n_blocks)])
+    assert got.t_ns[0] == 0
+    return SampleBlock(
+        got.t_ns, got.rocker_angle_rad, got.strain, got.raw_volts, got.first_sequence - first
+    )
 
 
 @pytest.mark.slow
