@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from daq.antialias import AntiAliasDesign, design_antialias
 from daq.errors import DaqError, DeviceTimeoutError
@@ -200,6 +200,52 @@ def _event(t_ns: int, level: str, name: str, message: str) -> Event:
     return Event(max(0, int(t_ns)), level, name, message)
 
 
+class CaptureMonitor(Protocol):
+    """What watches a capture (the live view): it is handed every record right after the
+    log has it, and must return at once (queue it, or drop it); the log never waits."""
+
+    def samples(self, block: SampleBlock) -> None: ...
+    def frame(self, frame: Frame) -> None: ...
+    def event(self, event: Event) -> None: ...
+
+
+class _Recorder:
+    """The log writer, and the monitor that sees what was written once it was."""
+
+    def __init__(self, writer: LogWriter, monitor: CaptureMonitor | None) -> None:
+        self.writer = writer
+        self.monitor = monitor
+
+    def write_samples(self, block: SampleBlock) -> None:
+        self.writer.write_samples(block)
+        if self.monitor is not None and len(block):
+            self.monitor.samples(block)
+
+    def write_frame(self, frame: Frame) -> None:
+        self.writer.write_frame(frame)
+        if self.monitor is not None:
+            self.monitor.frame(frame)
+
+    def write_event(self, event: Event) -> None:
+        self.writer.write_event(event)
+        if self.monitor is not None:
+            self.monitor.event(event)
+
+    @property
+    def last_log_time_ns(self) -> int | None:
+        return self.writer.last_log_time_ns
+
+    @property
+    def last_flushed_log_time_ns(self) -> int | None:
+        return self.writer.last_flushed_log_time_ns
+
+    def flush(self) -> None:
+        self.writer.flush()
+
+    def maybe_flush(self) -> None:
+        self.writer.maybe_flush()
+
+
 def _check_out_path(out: Path) -> None:
     if out.exists():
         raise BeambenchError(f"{out}: already exists; choose another --out (never overwritten)")
@@ -253,6 +299,7 @@ def capture_run(
     realtime: bool,
     camera_info: dict[str, Any] | None = None,
     progress: ProgressFn | None = None,
+    monitor: CaptureMonitor | None = None,
 ) -> CaptureSummary:
     """Record ``duration_s`` of run time from the devices into a new MCAP log.
 
@@ -275,6 +322,9 @@ def capture_run(
         ``foxglove.CameraCalibration`` content for ``/camera/info``.
     progress : callable, optional
         ``progress(captured_s, duration_s)`` after each DAQ block.
+    monitor : CaptureMonitor, optional
+        Sees every sample block, frame and event after the log has written it (the live
+        view); it must not block.
 
     Raises
     ------
@@ -310,7 +360,8 @@ def capture_run(
             )
         except OSError as exc:
             raise BeambenchError(f"{out}: cannot write: {exc.strerror or exc}") from None
-        writer.write_event(_event(0, "info", "start", f"run {info['run_id']} started"))
+        rec = _Recorder(writer, monitor)
+        rec.write_event(_event(0, "info", "start", f"run {info['run_id']} started"))
         if camera_device is not None:
             fps = camera_device.describe().get("frame_rate_hz")
             period = 1.0 / fps if isinstance(fps, int | float) and fps > 0 else 1.0
@@ -322,7 +373,7 @@ def capture_run(
                 rig,
                 daq_device,
                 reader,
-                writer,
+                rec,
                 design,
                 first_seq,
                 end_ns,
@@ -331,7 +382,7 @@ def capture_run(
                 progress,
                 realtime=realtime,
             )
-            writer.write_event(_event(end_ns, "info", "stop", "run finished"))
+            rec.write_event(_event(end_ns, "info", "stop", "run finished"))
         except KeyboardInterrupt:
             interrupted = True
             writer.write_event(
@@ -439,7 +490,7 @@ def _loop(
     rig: Rig,
     daq_device: StrainDaq,
     reader: _CameraReader | None,
-    writer: LogWriter,
+    writer: _Recorder,
     design: AntiAliasDesign,
     first_seq: int,
     end_ns: int,
@@ -542,7 +593,7 @@ def _loop(
 
 def _drain(
     reader: _CameraReader,
-    writer: LogWriter,
+    writer: _Recorder,
     pending: list[Frame],
     upto_ns: int,
     c: _Counters,
@@ -569,6 +620,6 @@ def _drain(
     return done
 
 
-def _write_frame(writer: LogWriter, frame: Frame, c: _Counters) -> None:
+def _write_frame(writer: _Recorder, frame: Frame, c: _Counters) -> None:
     writer.write_frame(frame)
     c.frames += 1

@@ -38,7 +38,7 @@ def damping_law_from_args(args: argparse.Namespace, rig: Rig) -> str:
     return law
 
 
-def add_viewer_arguments(p: argparse.ArgumentParser) -> None:
+def add_viewer_arguments(p: argparse.ArgumentParser, frame_reduction_default: int = 2) -> None:
     """``--rrd FILE`` | ``--spawn`` | ``--connect URL``: where a Rerun recording goes."""
     g = p.add_mutually_exclusive_group()
     g.add_argument("--rrd", metavar="FILE.rrd", help="save the Rerun recording to a file")
@@ -48,8 +48,9 @@ def add_viewer_arguments(p: argparse.ArgumentParser) -> None:
         "--frame-reduction",
         type=int,
         choices=(1, 2, 4),
-        default=2,
+        default=frame_reduction_default,
         metavar="N",
-        help="camera frames in the recording at 1/N of their size (default 2, so a run loads "
-        "in seconds; 1 keeps them at full resolution as logged)",
+        help=f"camera frames in the recording at 1/N of their size (default "
+        f"{frame_reduction_default}, so a run loads in seconds; 1 keeps them at full "
+        "resolution as logged)",
     )

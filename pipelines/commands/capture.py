@@ -6,7 +6,7 @@ import argparse
 import math
 from typing import Any
 
-from pipelines.commands._args import add_rig_argument, rig_from_args
+from pipelines.commands._args import add_rig_argument, add_viewer_arguments, rig_from_args
 from pipelines.errors import BeambenchError
 from pipelines.progress import Progress
 from pipelines.rig import Rig
@@ -20,6 +20,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_rig_argument(p)
     p.add_argument("--backend", choices=("fake", "hardware"), default="fake")
     p.add_argument("--realtime", action="store_true", help="pace the fake like the hardware")
+    add_viewer_arguments(p, frame_reduction_default=4)
+    p.add_argument(
+        "--view-rate",
+        type=float,
+        default=3.0,
+        metavar="HZ",
+        help="with a live view: camera frames shown (and measured) per second, at most "
+        "(default 3; the log keeps every frame)",
+    )
 
 
 def camera_info_from_rig(rig: Rig) -> dict[str, Any]:
@@ -59,6 +68,37 @@ def hardware_devices(rig: Rig) -> tuple[Any, Any, dict[str, Any]]:
     return daq_device, camera, camera_info_from_rig(rig)
 
 
+def open_live_view(args: argparse.Namespace, rig: Rig, camera_info: dict[str, Any] | None) -> Any:
+    """The live view the arguments ask for (``--rrd``, ``--spawn`` or ``--connect``), or None."""
+    if not (args.rrd or args.spawn or args.connect):
+        return None
+    if not (math.isfinite(args.view_rate) and 0 < args.view_rate <= rig.camera.frame_rate_hz):
+        raise BeambenchError(
+            f"--view-rate must be in (0, {rig.camera.frame_rate_hz:g}] frames/s, "
+            f"got {args.view_rate:g}"
+        )
+    from pipelines.review.live import LiveView
+    from pipelines.review.viewer import open_viewer
+
+    try:
+        viewer = open_viewer(
+            "beambench-capture",
+            rrd_path=args.rrd,
+            spawn=bool(args.spawn),
+            connect_url=args.connect,
+            layout="live",
+        )
+    except (ValueError, OSError, RuntimeError) as exc:
+        raise BeambenchError(f"cannot open the live view: {exc}") from None
+    return LiveView(
+        viewer,
+        rig,
+        frame_rate_hz=args.view_rate,
+        frame_reduction=args.frame_reduction,
+        camera_info=camera_info,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from pipelines.acquire.capture import capture_run
 
@@ -75,20 +115,33 @@ def run(args: argparse.Namespace) -> int:
         )
     else:
         daq_device, camera, camera_info = hardware_devices(rig)
-    with Progress("capture", total=args.duration) as bar:
+    live = open_live_view(args, rig, camera_info)
+    try:
+        with Progress("capture", total=args.duration) as bar:
 
-        def progress(done_s: float, total_s: float) -> None:
-            bar.update(done_s - bar.done)
+            def progress(done_s: float, total_s: float) -> None:
+                bar.update(done_s - bar.done)
 
-        s = capture_run(
-            rig,
-            daq_device,
-            camera,
-            args.out,
-            args.duration,
-            realtime=args.realtime or args.backend == "hardware",
-            camera_info=camera_info,
-            progress=progress if bar.enabled else None,
+            s = capture_run(
+                rig,
+                daq_device,
+                camera,
+                args.out,
+                args.duration,
+                realtime=args.realtime or args.backend == "hardware",
+                camera_info=camera_info,
+                progress=progress if bar.enabled else None,
+                monitor=live,
+            )
+    finally:
+        if live is not None:
+            stats = live.close()
+            live.viewer.close()
+    if live is not None:
+        print(
+            f"  live view: {stats.frames_shown} frames shown ({stats.frames_measured} "
+            f"measured), {stats.sample_blocks} sample blocks, {stats.dropped} dropped by "
+            "the view (none by the log)"
         )
     print(f"wrote {s.out_path} ({s.log_bytes / 1e6:.2f} MB), run {s.run_id}")
     print(

@@ -10,6 +10,8 @@ where):
   and a marker at the current time.
 - ``raw``: what a log holds before processing (``beambench replay``): the camera, the events,
   the rocker angle and the measured strains, no empty panel.
+- ``live``: a capture as it is recorded (``beambench capture --spawn``): the raw layout and
+  the tip deflection measured on the frames shown.
 
 Series are shown in degrees, millimetres and microstrain; results files keep SI.
 """
@@ -21,7 +23,7 @@ from collections.abc import Sequence
 import rerun.blueprint as rrb
 
 N_GAUGES_IN_LAYOUT = 4  # the bench has four gauges; the blueprint shows one panel each
-LAYOUTS = ("processed", "raw")
+LAYOUTS = ("processed", "raw", "live")
 
 COLOUR_MEASURED = (31, 119, 180)
 COLOUR_STRAIN = (255, 127, 14)
@@ -75,13 +77,25 @@ def build_blueprint(
     """
     if kind not in LAYOUTS:
         raise ValueError(f"kind must be one of {', '.join(LAYOUTS)}, got {kind!r}")
-    raw = kind == "raw"
+    raw = kind in ("raw", "live")
     rocker = rrb.TimeSeriesView(
         name="rocker angle (deg)", origin="/", contents=["/daq/rocker_angle"]
     )
     strains = rrb.Grid(*(_gauge_panel(j, raw) for j in range(n_gauges)))
     camera = rrb.Spatial2DView(name="camera", origin="/camera")
     events = rrb.TextLogView(name="events", origin="/events")
+    if kind == "live":
+        live_tip = rrb.TimeSeriesView(
+            name="tip lateral, frames shown (mm)", origin="/", contents=["/tip_lateral/image"]
+        )
+        return rrb.Blueprint(
+            rrb.Horizontal(
+                rrb.Vertical(camera, events, row_shares=[3, 1]),
+                rrb.Vertical(rocker, strains, live_tip, row_shares=[1, 3, 1]),
+                column_shares=[1, 1],
+            ),
+            collapse_panels=True,
+        )
     if raw:
         return rrb.Blueprint(
             rrb.Horizontal(

@@ -660,7 +660,8 @@ def open_viewer(
         renamed on :meth:`RunViewer.close`).
     spawn : start a Rerun viewer and stream to it.
     connect_url : stream to a running viewer, e.g. ``rerun+http://127.0.0.1:9876/proxy``.
-    layout : ``"processed"`` (a processed run) or ``"raw"`` (a log replayed as recorded).
+    layout : ``"processed"`` (a processed run), ``"raw"`` (a log replayed as recorded) or
+        ``"live"`` (a capture as it is recorded).
 
     Raises
     ------
