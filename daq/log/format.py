@@ -8,7 +8,8 @@ encoding of each record. Used by the writer, reader and recovery modules.
   anti-alias group delay removed). ``publish_time``: UTC wall clock of the write, ns.
 - ``sequence``: ``/daq/samples`` the output-sample index, ``/camera/image`` the camera's
   frame counter, ``/events`` a counter: a jump is a loss.
-- ``/daq/samples``: JSON (schema ``beambench.DaqSample``), one message per sample;
+- ``/daq/samples``: JSON (schema ``beambench.DaqSample``), one message per sample, each
+  gauge's strain also as its own field and the sample's UTC time in ``header.stamp``;
   ``/camera/image``, ``/camera/info``, ``/events``: protobuf ``foxglove.CompressedImage``,
   ``foxglove.CameraCalibration``, ``foxglove.Log`` (``name`` = event name).
 - Chunks: zstd; frames go in chunks of their own (up to 8 frames) so reading samples
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
@@ -71,6 +73,26 @@ SAMPLE_SCHEMA: dict[str, Any] = {
             "maxItems": 5,
             "description": "V: potentiometer, then gauges 1-4",
         },
+        **{
+            f"strain_g{j}": {
+                "type": ["number", "null"],
+                "description": f"m/m, gauge {j} (= strain[{j - 1}]: one field path per "
+                "signal, for plotting tools)",
+            }
+            for j in range(1, 5)
+        },
+        "header": {
+            "type": "object",
+            "description": "the sample's UTC time (stamp = the run's UTC start + the run-clock "
+            "timestamp), for tools that show wall-clock time (Foxglove: 'header stamp')",
+            "properties": {
+                "stamp": {
+                    "type": "object",
+                    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
+                },
+                "frame_id": {"type": "string"},
+            },
+        },
     },
     "required": ["timestamp", "rocker_angle_rad", "strain", "raw_volts"],
 }
@@ -78,8 +100,11 @@ SAMPLE_SCHEMA_BYTES = json.dumps(SAMPLE_SCHEMA, separators=(",", ":")).encode()
 
 _SAMPLE_FORMAT = (
     '{"timestamp":{"sec":%d,"nsec":%d},"rocker_angle_rad":%r,'
-    '"strain":[%r,%r,%r,%r],"raw_volts":[%r,%r,%r,%r,%r]}'
+    '"strain":[%r,%r,%r,%r],"raw_volts":[%r,%r,%r,%r,%r],'
+    '"strain_g1":%r,"strain_g2":%r,"strain_g3":%r,"strain_g4":%r'
 )
+_HEADER_FORMAT = ',"header":{"stamp":{"sec":%d,"nsec":%d},"frame_id":"daq"}}'
+_NO_HEADER = "}"
 
 LEVEL_TO_PROTO = {"info": Log.INFO, "warning": Log.WARNING, "error": Log.ERROR}
 PROTO_TO_LEVEL = {v: k for k, v in LEVEL_TO_PROTO.items()}
@@ -98,27 +123,61 @@ def protobuf_schema(message_class: Any) -> tuple[str, bytes]:
     return message_class.DESCRIPTOR.full_name, fds.SerializeToString()
 
 
+def utc_zero_ns(run_info: dict[str, Any]) -> int | None:
+    """The UTC time of run-clock zero, ns since the epoch: the run's ``start_utc`` (when the
+    DAQ started) plus its ``preroll_s``; None when the run record does not say."""
+    start = run_info.get("start_utc")
+    if not isinstance(start, str):
+        return None
+    try:
+        when = datetime.fromisoformat(start.replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    if when.tzinfo is None:
+        return None
+    preroll = run_info.get("preroll_s", 0.0)
+    preroll_s = float(preroll) if isinstance(preroll, int | float) else 0.0
+    since = when - datetime(1970, 1, 1, tzinfo=UTC)  # exact, unlike a float timestamp
+    whole_us = (since.days * 86_400 + since.seconds) * 1_000_000 + since.microseconds
+    return whole_us * 1000 + (round(preroll_s * 1e9) if math.isfinite(preroll_s) else 0)
+
+
 def encode_samples(
-    t_ns: np.ndarray, angle: np.ndarray, strain: np.ndarray, volts: np.ndarray
+    t_ns: np.ndarray,
+    angle: np.ndarray,
+    strain: np.ndarray,
+    volts: np.ndarray,
+    utc_zero_ns: int | None = None,
 ) -> list[bytes]:
     """One JSON message per sample. Floats use ``repr`` (shortest exact round trip);
-    non-finite values become ``null`` (read back as NaN)."""
+    non-finite values become ``null`` (read back as NaN). Each gauge's strain is also its
+    own field (``strain_g1`` ...), and with ``utc_zero_ns`` (the UTC time of run-clock
+    zero, ns since the epoch) the sample's UTC time is in ``header.stamp``."""
     sec, nsec = np.divmod(t_ns, 1_000_000_000)
-    rows = np.column_stack([angle, strain, volts])
+    rows = np.column_stack([angle, strain, volts, strain])
+    if utc_zero_ns is None:
+        tails = [_NO_HEADER] * len(t_ns)
+    else:
+        usec, unsec = np.divmod(np.asarray(t_ns, np.int64) + np.int64(utc_zero_ns), 1_000_000_000)
+        tails = [
+            _HEADER_FORMAT % (a, b) for a, b in zip(usec.tolist(), unsec.tolist(), strict=True)
+        ]
     fmt = _SAMPLE_FORMAT
     if np.isfinite(rows).all():
         return [
-            (fmt % (s, ns, *r)).encode()
-            for s, ns, r in zip(sec.tolist(), nsec.tolist(), rows.tolist(), strict=True)
+            (fmt % (s, ns, *r) + tail).encode()
+            for s, ns, r, tail in zip(
+                sec.tolist(), nsec.tolist(), rows.tolist(), tails, strict=True
+            )
         ]
     out = []
-    for s, ns, r in zip(sec.tolist(), nsec.tolist(), rows.tolist(), strict=True):
+    for s, ns, r, tail in zip(sec.tolist(), nsec.tolist(), rows.tolist(), tails, strict=True):
         text = fmt.replace("%r", "%s") % (
             s,
             ns,
             *(repr(x) if math.isfinite(x) else "null" for x in r),
         )
-        out.append(text.encode())
+        out.append((text + tail).encode())
     return out
 
 

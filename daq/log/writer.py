@@ -38,6 +38,7 @@ from daq.log.format import (
     encode_samples,
     protobuf_schema,
     software_version,
+    utc_zero_ns,
 )
 from daq.records import Event, Frame, SampleBlock
 
@@ -101,6 +102,7 @@ class LogWriter:
         self.flush_interval_s = float(flush_interval_s)
         self._file = open(self.path, "xb")
         self._closed = False
+        self._utc_zero_ns: int | None = None
         self.counts = {TOPIC_SAMPLES: 0, TOPIC_IMAGE: 0, TOPIC_CAMERA_INFO: 0, TOPIC_EVENTS: 0}
         self.flush_count = 0
         self.bytes_at_last_flush = 0
@@ -121,6 +123,7 @@ class LogWriter:
             meta_rig = {"json": rig_json, **{k: json.dumps(v) for k, v in rig.items()}}
             self._mcap.add_metadata("rig", meta_rig)
             run = {"log_format_version": FORMAT_VERSION, **run_info}
+            self._utc_zero_ns = utc_zero_ns(run_info)
             self._mcap.add_metadata("run", encode_metadata(run))
             if cam is not None:
                 self._add(TOPIC_CAMERA_INFO, 0, encode_camera_info(cam), 0)
@@ -169,7 +172,9 @@ class LogWriter:
             return
         if int(block.t_ns[0]) < 0:
             raise ValueError("block.t_ns must be >= 0 (MCAP log times are unsigned)")
-        messages = encode_samples(block.t_ns, block.rocker_angle_rad, block.strain, block.raw_volts)
+        messages = encode_samples(
+            block.t_ns, block.rocker_angle_rad, block.strain, block.raw_volts, self._utc_zero_ns
+        )
         channel = self._channels[TOPIC_SAMPLES]
         now = time.time_ns()
         add = self._mcap.add_message

@@ -325,3 +325,33 @@ def test_recover_refuses_what_is_not_a_log(tmp_path: Path) -> None:
     with pytest.raises(LogError, match="not an MCAP file"):
         recover_log(junk, tmp_path / "out.mcap")
     assert not (tmp_path / "out.mcap").exists()
+
+
+def test_each_signal_has_its_own_field_and_each_sample_its_utc_time(tmp_path: Path) -> None:
+    """Plotting tools (Foxglove) take one field path per signal and show wall-clock time
+    from a header stamp: /daq/samples.strain_g3 is strain[2], and header.stamp is the run's
+    UTC start (start_utc + preroll_s) plus the run-clock timestamp. Added fields only."""
+    path = tmp_path / "plot.mcap"
+    b = _samples(0, 5, np.random.default_rng(4))
+    strain = b.strain.copy()
+    strain[2, 1] = np.nan  # a missing value is null in both places
+    block = SampleBlock(b.t_ns, b.rocker_angle_rad, strain, b.raw_volts, 0)
+    run_info = {"run_id": "abc", "start_utc": "2026-11-23T12:00:00.250000Z", "preroll_s": 0.0335}
+    with LogWriter(path, rig_json=RIG_JSON, run_info=run_info) as w:
+        w.write_samples(block)
+    zero_ns = 1_795_435_200_250_000_000 + 33_500_000  # 2026-11-23T12:00:00.25Z + pre-roll
+    with path.open("rb") as f:
+        messages = [
+            json.loads(m.data) for _, _, m in make_reader(f).iter_messages(topics=["/daq/samples"])
+        ]
+    assert len(messages) == 5
+    for k, d in enumerate(messages):
+        for j in range(4):
+            assert d[f"strain_g{j + 1}"] == d["strain"][j]
+        t_ns = int(block.t_ns[k])
+        stamp = d["header"]["stamp"]
+        assert stamp["sec"] * 1_000_000_000 + stamp["nsec"] == zero_ns + t_ns
+        assert d["timestamp"]["sec"] * 1_000_000_000 + d["timestamp"]["nsec"] == t_ns
+    assert messages[2]["strain_g2"] is None
+    run = read_run(path)
+    np.testing.assert_array_equal(run.samples.strain, block.strain)  # read as before
