@@ -9,11 +9,14 @@ Methods
     Locate the beam and hub around the pivot (:mod:`vision.locate`), take sub-pixel
     edges along raw pixel rows/columns (:mod:`vision.edges`), map the edge points through
     undistortion and the homography into the plane (:meth:`Calibration.to_plane
-    <vision.calibration.Calibration.to_plane>`), fit the hub's two edges as parallel
-    lines (hub axis and angle) and find the clamp (where the hub ends) by 1-D edge moments
-    along the axis (:mod:`vision.hub`), fit each beam edge with a polynomial in the hub
-    frame, the centre line being their mean (:mod:`vision.centreline`), and find the tip
-    (where the strip ends) as the clamp was found. The beam's steps are here.
+    <vision.calibration.Calibration.to_plane>`), find the clamp (where the hub ends) by
+    1-D edge moments along the axis (:mod:`vision.hub`), then fit the hub's axis and the
+    beam's clamped centre line together (:func:`vision.centreline.fit_clamped_joint`):
+    the beam leaves the clamp, on the axis through the pivot (the plane's origin), along
+    the axis, so its root fixes the axis whatever the hub's length; the hub's long edges,
+    when it shows any clear of its end faces, add their direction (a hub at least twice
+    as long as wide is also fitted alone, as a check). Find the tip (where the strip
+    ends) as the clamp was found. The beam's steps are here.
 ``"paper"``
     The paper's chain (seed 000 §4): whole-frame rectification with the homography,
     3x3 mean filter, Prewitt edges, 5x1 boxcar, first moments (:mod:`vision.paper_chain`).
@@ -33,7 +36,7 @@ from vision.calibration import Calibration
 from vision.centreline import (
     CentreLine,
     arc_length,
-    fit_centreline,
+    fit_clamped_joint,
     stations_to_a,
 )
 from vision.edges import strip_edges_many
@@ -154,17 +157,51 @@ class Measurer:
         back_a = back_face(image, clamp, e, n, hub_w, guess_back, to_px=to_px, px_m=px_m)
         back = clamp + back_a * e
         # The hub's and the beam's edges, scanned in one pass (a scan's fixed cost is
-        # about that of its lines). The hub's axis is then fitted to its two long edges
-        # over its whole length (the direction's noise falls as length^-1.5), and the
-        # beam's edges are expressed in that frame.
-        (ha, hb), (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
-        e, n, axis_b, hub_w, sd_hub = hub_axis(ha, hb, back, clamp, e, _END_MARGIN_PX * px_m)
-        clamp = clamp - ((clamp @ n) - axis_b) * n
-        la, lb = self._beam_frame(pa, pb, clamp, e, n, hub_w, length)
-        amax = float(max(la[:, 0].max(), lb[:, 0].max()))
-        fit = fit_centreline(la, lb, self.poly_degree, amax)
-        if isinstance(fit, str):
-            raise FrameFailure(fit)
+        # about that of its lines); a hub too short to show edge points clear of its end
+        # faces gives none.
+        hub_pts, (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
+        margin = _END_MARGIN_PX * px_m
+        sd_hub_edges, e_hub = math.nan, None
+        if hub_pts is not None and float((clamp - back) @ e) >= max(20 * px_m, 2.0 * hub_w):
+            # A long hub: its axis from its two long edges alone (the direction's noise
+            # falls as length^-1.5), a start for the joint fit and a check on it.
+            e_hub, _, _, hub_w, sd_hub_edges = hub_axis(*hub_pts, back, clamp, e, margin)
+            e = e_hub
+        hub_a, hub_b = _clear_of_faces(hub_pts, back, clamp, e, margin)
+        # The axis and the clamped centre line together: the beam leaves the clamp, on
+        # the axis a known distance from the pivot (the plane's origin), along the axis.
+        joint = None
+        for _ in range(6):
+            n = np.array([-e[1], e[0]])
+            d_clamp = float(clamp @ e)
+            on_axis = d_clamp * e
+            la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
+            amax = float(max(la[:, 0].max(), lb[:, 0].max()))
+            ha = np.column_stack([(hub_a - on_axis) @ e, (hub_a - on_axis) @ n])
+            hb = np.column_stack([(hub_b - on_axis) @ e, (hub_b - on_axis) @ n])
+            res = fit_clamped_joint(la, lb, ha, hb, self.poly_degree, amax, d_clamp)
+            if isinstance(res, str):
+                raise FrameFailure(res)
+            joint = res
+            turn = joint.rotation_rad
+            c, sn = math.cos(turn), math.sin(turn)
+            e = np.array([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
+            if abs(turn) < 1e-10:
+                break
+        assert joint is not None
+        n = np.array([-e[1], e[0]])
+        clamp = d_clamp * e
+        sd_hub = joint.rotation_sd_rad
+        if math.isfinite(joint.hub_width):
+            hub_w = joint.hub_width
+        fit = joint.fit
+        if e_hub is not None:
+            gap = math.asin(max(-1.0, min(1.0, float(e_hub[0] * e[1] - e_hub[1] * e[0]))))
+            if abs(gap) > 5.0 * math.hypot(sd_hub_edges, sd_hub):
+                raise FrameFailure(
+                    f"the hub's edges and the beam's root disagree on the hub angle by "
+                    f"{math.degrees(gap):.3f} deg: hub or beam mis-measured"
+                )
         centre, rms, width = fit.centre, fit.rms, fit.width
         if abs(width - w_beam) > 0.15 * w_beam:
             raise FrameFailure(
@@ -185,9 +222,9 @@ class Measurer:
                 f"beam length {arc * 1e3:.0f} mm along the centre line disagrees with "
                 f"{length * 1e3:.0f} mm (occluded or out of view?)"
             )
-        # Predicted noise of the tip's lateral deflection: the hub's direction carried to
-        # the tip, and the fitted centre line's own uncertainty at its end.
-        sd_tip = math.hypot(sd_hub * length, fit.tip_sd)
+        # Predicted noise of the tip's lateral deflection: the centre line's uncertainty
+        # at its end, the axis's (fitted with it) included.
+        sd_tip = fit.tip_sd
         if sd_tip > self.max_tip_std_m:
             raise FrameFailure(
                 f"too noisy: tip lateral uncertainty {sd_tip * 1e3:.2f} mm "
@@ -270,14 +307,13 @@ class Measurer:
         n: NDArray[np.float64],
         hub_w: float,
         w_beam: float,
-    ) -> tuple[tuple[NDArray, NDArray], tuple[NDArray, NDArray], float]:
-        """Edge points (plane, m) of the hub (past both its faces, along the rough axis)
-        and of the beam (along its rough centre line, from past the shoulders to short of
-        the tip), the two strips scanned in one pass; and the beam edges' median ramp
-        width (px)."""
+    ) -> tuple[tuple[NDArray, NDArray] | None, tuple[NDArray, NDArray], float]:
+        """Edge points (plane, m) of the hub (past both its faces, along the rough axis;
+        None when it is too short to show any clear of them) and of the beam (along its
+        rough centre line, from past the shoulders to short of the tip), the two strips
+        scanned in one pass; and the beam edges' median ramp width (px)."""
         hub_len = float((clamp - back) @ e)
-        if hub_len < max(20 * self.px_m, 2.0 * hub_w):
-            raise FrameFailure("hub too short in view to fit its axis")
+        with_hub = hub_len - 2 * _END_MARGIN_PX * self.px_m >= 8 * self.px_m
         # A scan line (a pixel row or column) crosses the hub's two edges up to a hub
         # width apart along the axis: scan past both faces, keep points clear of them.
         ext = 0.5 * hub_w
@@ -297,6 +333,9 @@ class Measurer:
         aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
         bq = np.interp(aq, a, b)
         beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
+        if not with_hub:
+            ((pa, pb, spread),) = self._strip_points(image, [(beam_line, 0.5 * w_beam)])
+            return None, (pa, pb), median(spread)
         (ha, hb, _), (pa, pb, spread) = self._strip_points(
             image, [(hub_line, 0.5 * hub_w), (beam_line, 0.5 * w_beam)]
         )
@@ -362,3 +401,22 @@ class Measurer:
         a_tip = a_ref + dist * t[0]
         b_tip = b_ref + dist * t[1]
         return float(a_tip), float(b_tip)
+
+
+def _clear_of_faces(
+    hub_pts: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+    back: NDArray[np.float64],
+    front: NDArray[np.float64],
+    e: NDArray[np.float64],
+    margin: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The hub's edge points (plane, m) ``margin`` clear of its end faces (none when the
+    hub gave none)."""
+    if hub_pts is None:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    length = float((front - back) @ e)
+    out = []
+    for p in hub_pts:
+        sa = (p - back) @ e
+        out.append(p[(sa > margin) & (sa < length - margin)])
+    return out[0], out[1]

@@ -65,6 +65,7 @@ def test_no_poses_are_refused(clean_spec, vt) -> None:
         render_frame(clean_spec, [])
 
 
+@pytest.mark.slow
 def test_a_blurred_frame_is_the_time_average_of_sharp_ones(vt) -> None:
     """Coverage and lighting are linear: the frame of a motion is the mean of the frames
     of its poses (to the 8-bit rounding of each), whatever the hub's size."""
