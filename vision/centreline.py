@@ -341,7 +341,8 @@ def fit_clamped_joint(
     # free offset and a free slope at the root.
     kb = keep[:n_beam]
     ab = np.vstack([a_t[0, :n_beam], np.ones(n_beam), u, a_t[n_coef - p_shape :, :n_beam]])
-    free = np.linalg.lstsq(ab[:, kb].T, b[:n_beam][kb], rcond=None)[0]
+    abk = ab[:, kb]
+    free = np.linalg.solve(abk @ abk.T, abk @ b[:n_beam][kb])
     slope = float(free[2]) / amax
     centre_u = _to_power(degree).T @ coef[n_coef - p_shape :]
     rb = r[:n_beam][kb]

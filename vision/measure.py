@@ -53,6 +53,9 @@ METHODS = ("default", "paper")
 #: Hub edge points are taken this many pixels clear of the hub's end faces (the scan
 #: window and the blur reach that far).
 _END_MARGIN_PX = 10.0
+#: A turn of the trial axis below which the joint fit is not repeated in the turned frame
+#: (its second-order terms, ~turn^2 x the beam's length, are then below 1e-10 m).
+_SMALL_TURN_RAD = 1e-4
 
 
 class Measurer:
@@ -186,7 +189,9 @@ class Measurer:
             turn = joint.rotation_rad
             c, sn = math.cos(turn), math.sin(turn)
             e = np.array([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
-            if abs(turn) < 1e-10:
+            # The fitted shape is already in the turned frame to first order; what a
+            # turn below 1e-4 rad leaves is below 1e-10 m at the tip: no second fit.
+            if abs(turn) < _SMALL_TURN_RAD:
                 break
         assert joint is not None
         n = np.array([-e[1], e[0]])
