@@ -71,6 +71,8 @@ class CentreFit:
     rms: float
     tip_sd: float
     root_slope_rad: float
+    #: standard uncertainty of ``root_slope_rad`` (NaN where not computed).
+    root_slope_sd_rad: float = math.nan
 
 
 @lru_cache(maxsize=8)
@@ -342,8 +344,13 @@ def fit_clamped_joint(
     kb = keep[:n_beam]
     ab = np.vstack([a_t[0, :n_beam], np.ones(n_beam), u, a_t[n_coef - p_shape :, :n_beam]])
     abk = ab[:, kb]
-    free = np.linalg.solve(abk @ abk.T, abk @ b[:n_beam][kb])
+    gram_free = abk @ abk.T
+    free = np.linalg.solve(gram_free, abk @ b[:n_beam][kb])
     slope = float(free[2]) / amax
+    res_free = b[:n_beam][kb] - free @ abk
+    s2_free = float(res_free @ res_free) / max(int(kb.sum()) - len(free), 1)
+    slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
+    slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
     centre_u = _to_power(degree).T @ coef[n_coef - p_shape :]
     rb = r[:n_beam][kb]
     fit = CentreFit(
@@ -354,6 +361,7 @@ def fit_clamped_joint(
         rms=math.sqrt(float(np.mean(rb**2))),
         tip_sd=tip_sd,
         root_slope_rad=slope,
+        root_slope_sd_rad=slope_sd,
     )
     if use_hub:
         rh = r[n_beam:][keep[n_beam:]]

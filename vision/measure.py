@@ -67,6 +67,13 @@ class Measurer:
     calibration : the camera placement's :class:`~vision.calibration.Calibration`.
     stations_m : distances from the clamp (m) at which lateral deflection is reported.
     method : ``"default"`` or ``"paper"``.
+    max_blur_px : frames whose beam edges spread wider (median ramp width along the scan
+        lines, motion blur) are refused: the edge fits are biased beyond it.
+    max_root_slope_rad : a free fit's slope at the root beyond this and beyond 4 of its
+        standard uncertainties flags the frame (hub or beam mis-measured).
+    max_tip_uncertainty_m : frames whose stated tip lateral standard uncertainty exceeds
+        it are refused ("too noisy"); below it, they are measured with that uncertainty
+        (``max_tip_std_m`` is its former name).
     """
 
     def __init__(
@@ -76,10 +83,11 @@ class Measurer:
         stations_m: Sequence[float] = (0.005, 0.204, 0.403, 0.603),
         method: str = "default",
         poly_degree: int = 8,
-        max_blur_px: float = 9.0,
+        max_blur_px: float = 6.0,
         edge_estimator: str = "erf",
         max_root_slope_rad: float = 0.01,
-        max_tip_std_m: float = 0.3e-3,
+        max_tip_uncertainty_m: float = 0.5e-3,
+        max_tip_std_m: float | None = None,
     ) -> None:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
@@ -95,7 +103,9 @@ class Measurer:
         self.max_blur_px = float(max_blur_px)
         self.edge_estimator = edge_estimator
         self.max_root_slope_rad = float(max_root_slope_rad)
-        self.max_tip_std_m = float(max_tip_std_m)
+        # ``max_tip_std_m``: the former name of ``max_tip_uncertainty_m``.
+        limit = max_tip_uncertainty_m if max_tip_std_m is None else max_tip_std_m
+        self.max_tip_std_m = float(limit)
         # Plane size of a pixel about the pivot (search step sizes are set from it).
         pivot_px = calibration.to_px(np.zeros((1, 2)))[0]
         nb = calibration.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
@@ -214,8 +224,15 @@ class Measurer:
                 f"calibration's {w_beam * 1e3:.1f} mm"
             )
         if blur > self.max_blur_px:
-            raise FrameFailure(f"motion blur: beam edges spread {blur:.1f} px")
-        if abs(fit.root_slope_rad) > self.max_root_slope_rad:
+            raise FrameFailure(
+                f"motion blur: beam edges spread {blur:.1f} px ({blur * px_m * 1e3:.1f} mm of "
+                f"smear in the plane; measured up to {self.max_blur_px:.0f} px)"
+            )
+        # The clamped prior's check: a hub or beam mis-measured shows as a slope at the
+        # root, beyond what the edges' noise explains (a noisy frame's slope is as
+        # uncertain as its tip, which the uncertainty limit below refuses).
+        slope_sd = fit.root_slope_sd_rad if math.isfinite(fit.root_slope_sd_rad) else 0.0
+        if abs(fit.root_slope_rad) > max(self.max_root_slope_rad, 4.0 * slope_sd):
             raise FrameFailure(
                 f"the beam leaves the clamp at {math.degrees(fit.root_slope_rad):.2f} deg to "
                 "the hub axis (a clamped beam leaves along it): hub or beam mis-measured"
