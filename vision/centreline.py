@@ -71,6 +71,8 @@ class CentreFit:
     rms: float
     tip_sd: float
     root_slope_rad: float
+    #: standard uncertainty of ``root_slope_rad`` (NaN where not computed).
+    root_slope_sd_rad: float = math.nan
 
 
 @lru_cache(maxsize=8)
@@ -224,3 +226,154 @@ def stations_to_a(
     ds = np.sqrt(1.0 + centre.deriv(a) ** 2)
     s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
     return np.interp(stations, s, a)
+
+
+@dataclass
+class JointFit:
+    """Result of :func:`fit_clamped_joint` (hub frame of the trial axis, m).
+
+    ``rotation_rad``: the turn of the trial axis (about the pivot) that the data ask
+    for, and ``rotation_sd_rad`` its standard uncertainty; ``fit``: the centre line in
+    the turned frame (its ``tip_sd`` includes the axis's uncertainty); ``hub_width`` and
+    ``hub_offset``: the hub edges' distance apart and their mid-line's offset from the
+    pivot's line (NaN without hub edges); ``hub_rms``: their RMS residual."""
+
+    rotation_rad: float
+    rotation_sd_rad: float
+    fit: CentreFit
+    hub_width: float
+    hub_offset: float
+    hub_rms: float
+
+
+def fit_clamped_joint(
+    left: NDArray[np.float64],
+    right: NDArray[np.float64],
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    degree: int,
+    amax: float,
+    clamp_from_pivot: float,
+) -> JointFit | str:
+    """The hub's axis and the clamped centre line, fitted together.
+
+    The beam leaves the clamp along the hub's axis (``w'(0) = 0``) at the clamp, which
+    lies on the axis ``clamp_from_pivot`` (m) from the pivot: in the frame of a trial
+    axis through the pivot (``a`` from the clamp along it, ``b`` across), a turn of the
+    true axis by a small ``delta`` moves every point's ``b`` by ``delta (a +
+    clamp_from_pivot)``. So the beam's edges (``left``, ``right``: (N, 2) (a, b)) are
+
+        b = delta (a + c) +- width / 2 + sum_k c_k u^2 P_k(2 u - 1),   u = a / amax,
+
+    and the hub's long edges (``hub_a``, ``hub_b``: (M, 2), M may be 0), straight lines
+    along the axis at their own offsets, ``b = delta (a + c) + h_edge``. The beam's edges
+    fix the axis through the root's position relative to the pivot; the hub's edges,
+    when long, add their direction. One weighted least-squares fit (each group weighed
+    by its own scatter; Tukey's biweight chooses the inliers, as in
+    :func:`fit_centreline`). Linear in ``delta`` to first order: the caller turns the
+    axis by ``rotation_rad`` and fits again until the turn vanishes.
+
+    Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
+    nl, nr = len(left), len(right)
+    nh = len(hub_a) + len(hub_b)
+    use_hub = len(hub_a) >= 5 and len(hub_b) >= 5
+    if not use_hub:
+        hub_a, hub_b, nh = np.zeros((0, 2)), np.zeros((0, 2)), 0
+    p_shape = degree - 1
+    n_beam = nl + nr
+    if min(nl, nr) < degree + 4:
+        return "beam edges too ragged"
+    a_all = np.concatenate([left[:, 0], right[:, 0], hub_a[:, 0], hub_b[:, 0]])
+    b = np.concatenate([left[:, 1], right[:, 1], hub_a[:, 1], hub_b[:, 1]])
+    n_all = n_beam + nh
+    n_coef = 2 + (2 if use_hub else 0) + p_shape
+    a_t = np.zeros((n_coef, n_all))
+    a_t[0, :nl], a_t[0, nl:n_beam] = 0.5, -0.5  # width
+    a_t[1] = a_all + clamp_from_pivot  # the axis's turn
+    if use_hub:
+        a_t[2, n_beam : n_beam + len(hub_a)] = 1.0
+        a_t[3, n_beam + len(hub_a) :] = 1.0
+    u = a_all[:n_beam] / amax
+    a_t[n_coef - p_shape :, :n_beam] = _basis_t(u, degree)
+    groups = [np.arange(n_beam), np.arange(n_beam, n_all)] if use_hub else [np.arange(n_beam)]
+    w = np.ones(n_all)
+    keep = np.ones(n_all, dtype=bool)
+    sig = np.ones(n_all)
+    for it in range(5):
+        coef = _wlstsq(a_t, b, w / sig**2)
+        r = b - coef @ a_t
+        for g in groups:
+            rg = r[g] if it == 0 else r[g][keep[g]]
+            sig[g] = 1.4826 * median(np.abs(rg)) + 1e-12 if len(rg) else 1.0
+        z = r / (TUKEY_C * sig)
+        inside = np.abs(z) < 1.0
+        w = np.where(inside, (1.0 - z * z) ** 2, 0.0)
+        if it >= 2 and np.array_equal(inside, keep):
+            break
+        keep = inside
+    if keep[:nl].sum() < degree + 4 or keep[nl:n_beam].sum() < degree + 4:
+        return "beam edges too ragged"
+    if use_hub and (
+        keep[n_beam : n_beam + len(hub_a)].sum() < 3 or keep[n_beam + len(hub_a) :].sum() < 3
+    ):  # the hub's edges are not straight lines: the beam's root alone
+        empty = np.zeros((0, 2))
+        return fit_clamped_joint(left, right, empty, empty, degree, amax, clamp_from_pivot)
+    # Final fit: the inliers, each group at its own variance (from its residuals).
+    wk = np.zeros(n_all)
+    r = b - _wlstsq(a_t, b, np.where(keep, 1.0 / sig**2, 0.0)) @ a_t
+    s2 = []
+    for g in groups:
+        kg = g[keep[g]]
+        dof = max(len(kg) - (p_shape + 2 if g[0] == 0 else 2), 1)
+        v = float(np.sum(r[kg] ** 2)) / dof if len(kg) else 1.0
+        s2.append(max(v, 1e-18))
+        wk[kg] = 1.0 / s2[-1]
+    gram = (a_t * wk) @ a_t.T
+    coef = np.linalg.solve(gram, (a_t * wk) @ b)
+    r = b - coef @ a_t
+    spans = [(0, nl), (nl, n_beam)]
+    if use_hub:
+        spans += [(n_beam, n_beam + len(hub_a)), (n_beam + len(hub_a), n_all)]
+    infl = max(correlation_inflation(r[i:j][keep[i:j]]) for i, j in spans)
+    cov = np.linalg.inv(gram) * infl
+    g_tip = np.zeros(n_coef)
+    g_tip[n_coef - p_shape :] = _basis(np.array([1.0]), degree)[0]
+    tip_sd = math.sqrt(max(float(g_tip @ cov @ g_tip), 0.0))
+    # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
+    # free offset and a free slope at the root.
+    kb = keep[:n_beam]
+    ab = np.vstack([a_t[0, :n_beam], np.ones(n_beam), u, a_t[n_coef - p_shape :, :n_beam]])
+    abk = ab[:, kb]
+    gram_free = abk @ abk.T
+    free = np.linalg.solve(gram_free, abk @ b[:n_beam][kb])
+    slope = float(free[2]) / amax
+    res_free = b[:n_beam][kb] - free @ abk
+    s2_free = float(res_free @ res_free) / max(int(kb.sum()) - len(free), 1)
+    slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
+    slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
+    centre_u = _to_power(degree).T @ coef[n_coef - p_shape :]
+    rb = r[:n_beam][kb]
+    fit = CentreFit(
+        centre=CentreLine(centre_u, amax),
+        left=left[keep[:nl]],
+        right=right[keep[nl:n_beam]],
+        width=float(coef[0]),
+        rms=math.sqrt(float(np.mean(rb**2))),
+        tip_sd=tip_sd,
+        root_slope_rad=slope,
+        root_slope_sd_rad=slope_sd,
+    )
+    if use_hub:
+        rh = r[n_beam:][keep[n_beam:]]
+        hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
+        hub_rms = math.sqrt(float(np.mean(rh**2)))
+    else:
+        hub, hub_rms = (math.nan, math.nan), math.nan
+    return JointFit(
+        rotation_rad=float(coef[1]),
+        rotation_sd_rad=math.sqrt(max(float(cov[1, 1]), 0.0)),
+        fit=fit,
+        hub_width=hub[0],
+        hub_offset=hub[1],
+        hub_rms=hub_rms,
+    )

@@ -32,6 +32,9 @@ class FrameMeasurement:
         fits' residuals (noise only; calibration errors are not included).
     blur_px : median ramp width of the beam's edges along the scan lines, px (motion blur
         widens it; frames beyond ``max_blur_px`` are flagged).
+
+    :meth:`to_dict` carries the standard uncertainties beside the values
+    (``hub_angle_sd_rad``, ``tip_lateral_sd_m``).
     """
 
     ok: bool
@@ -68,4 +71,6 @@ class FrameMeasurement:
             "tip_longitudinal_m": num(self.tip_longitudinal_m),
             "stations_m": [float(s) for s in self.stations_m],
             "lateral_at_stations_m": [num(float(v)) for v in self.lateral_at_stations_m],
+            "hub_angle_sd_rad": num(self.hub_angle_std_rad),
+            "tip_lateral_sd_m": num(self.tip_lateral_std_m),
         }

@@ -1,8 +1,10 @@
 """The hub in a frame (the default method's hub steps): its axis and its end faces.
 
-The hub is the wider bright bar the beam is clamped in. Its axis is fitted to points on
-its two long edges as two parallel lines (:func:`hub_axis`), after a rough axis through
-the located hub (:func:`rough_axis`) has placed the searches. Its end faces, the clamp
+The hub is the wider bright bar the beam is clamped in. A rough axis through the located
+hub (:func:`rough_axis`) places the searches; a long hub's axis is fitted to points on its
+two long edges as two parallel lines (:func:`hub_axis`), and the measurement then fits
+the axis with the beam's clamped shape (:func:`vision.centreline.fit_clamped_joint`), so a
+short clamp block is enough. Its end faces, the clamp
 (where the shoulders beside the beam end) and the back, are bright-to-dark edges along the
 axis found by 1-D edge moments of profiles sampled along it (:func:`end_edge`, which also
 finds the beam's tip face). Points are beam-plane (x, y) in metres; ``to_px`` maps them to

@@ -9,11 +9,14 @@ Methods
     Locate the beam and hub around the pivot (:mod:`vision.locate`), take sub-pixel
     edges along raw pixel rows/columns (:mod:`vision.edges`), map the edge points through
     undistortion and the homography into the plane (:meth:`Calibration.to_plane
-    <vision.calibration.Calibration.to_plane>`), fit the hub's two edges as parallel
-    lines (hub axis and angle) and find the clamp (where the hub ends) by 1-D edge moments
-    along the axis (:mod:`vision.hub`), fit each beam edge with a polynomial in the hub
-    frame, the centre line being their mean (:mod:`vision.centreline`), and find the tip
-    (where the strip ends) as the clamp was found. The beam's steps are here.
+    <vision.calibration.Calibration.to_plane>`), find the clamp (where the hub ends) by
+    1-D edge moments along the axis (:mod:`vision.hub`), then fit the hub's axis and the
+    beam's clamped centre line together (:func:`vision.centreline.fit_clamped_joint`):
+    the beam leaves the clamp, on the axis through the pivot (the plane's origin), along
+    the axis, so its root fixes the axis whatever the hub's length; the hub's long edges,
+    when it shows any clear of its end faces, add their direction (a hub at least twice
+    as long as wide is also fitted alone, as a check). Find the tip (where the strip
+    ends) as the clamp was found. The beam's steps are here.
 ``"paper"``
     The paper's chain (seed 000 §4): whole-frame rectification with the homography,
     3x3 mean filter, Prewitt edges, 5x1 boxcar, first moments (:mod:`vision.paper_chain`).
@@ -33,7 +36,7 @@ from vision.calibration import Calibration
 from vision.centreline import (
     CentreLine,
     arc_length,
-    fit_centreline,
+    fit_clamped_joint,
     stations_to_a,
 )
 from vision.edges import strip_edges_many
@@ -50,6 +53,9 @@ METHODS = ("default", "paper")
 #: Hub edge points are taken this many pixels clear of the hub's end faces (the scan
 #: window and the blur reach that far).
 _END_MARGIN_PX = 10.0
+#: A turn of the trial axis below which the joint fit is not repeated in the turned frame
+#: (its second-order terms, ~turn^2 x the beam's length, are then below 1e-10 m).
+_SMALL_TURN_RAD = 1e-4
 
 
 class Measurer:
@@ -61,6 +67,13 @@ class Measurer:
     calibration : the camera placement's :class:`~vision.calibration.Calibration`.
     stations_m : distances from the clamp (m) at which lateral deflection is reported.
     method : ``"default"`` or ``"paper"``.
+    max_blur_px : frames whose beam edges spread wider (median ramp width along the scan
+        lines, motion blur) are refused: the edge fits are biased beyond it.
+    max_root_slope_rad : a free fit's slope at the root beyond this and beyond 4 of its
+        standard uncertainties flags the frame (hub or beam mis-measured).
+    max_tip_uncertainty_m : frames whose stated tip lateral standard uncertainty exceeds
+        it are refused ("too noisy"); below it, they are measured with that uncertainty
+        (``max_tip_std_m`` is its former name).
     """
 
     def __init__(
@@ -70,10 +83,11 @@ class Measurer:
         stations_m: Sequence[float] = (0.005, 0.204, 0.403, 0.603),
         method: str = "default",
         poly_degree: int = 8,
-        max_blur_px: float = 9.0,
+        max_blur_px: float = 6.0,
         edge_estimator: str = "erf",
         max_root_slope_rad: float = 0.01,
-        max_tip_std_m: float = 0.3e-3,
+        max_tip_uncertainty_m: float = 0.5e-3,
+        max_tip_std_m: float | None = None,
     ) -> None:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
@@ -89,7 +103,9 @@ class Measurer:
         self.max_blur_px = float(max_blur_px)
         self.edge_estimator = edge_estimator
         self.max_root_slope_rad = float(max_root_slope_rad)
-        self.max_tip_std_m = float(max_tip_std_m)
+        # ``max_tip_std_m``: the former name of ``max_tip_uncertainty_m``.
+        limit = max_tip_uncertainty_m if max_tip_std_m is None else max_tip_std_m
+        self.max_tip_std_m = float(limit)
         # Plane size of a pixel about the pivot (search step sizes are set from it).
         pivot_px = calibration.to_px(np.zeros((1, 2)))[0]
         nb = calibration.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
@@ -154,17 +170,53 @@ class Measurer:
         back_a = back_face(image, clamp, e, n, hub_w, guess_back, to_px=to_px, px_m=px_m)
         back = clamp + back_a * e
         # The hub's and the beam's edges, scanned in one pass (a scan's fixed cost is
-        # about that of its lines). The hub's axis is then fitted to its two long edges
-        # over its whole length (the direction's noise falls as length^-1.5), and the
-        # beam's edges are expressed in that frame.
-        (ha, hb), (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
-        e, n, axis_b, hub_w, sd_hub = hub_axis(ha, hb, back, clamp, e, _END_MARGIN_PX * px_m)
-        clamp = clamp - ((clamp @ n) - axis_b) * n
-        la, lb = self._beam_frame(pa, pb, clamp, e, n, hub_w, length)
-        amax = float(max(la[:, 0].max(), lb[:, 0].max()))
-        fit = fit_centreline(la, lb, self.poly_degree, amax)
-        if isinstance(fit, str):
-            raise FrameFailure(fit)
+        # about that of its lines); a hub too short to show edge points clear of its end
+        # faces gives none.
+        hub_pts, (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
+        margin = _END_MARGIN_PX * px_m
+        sd_hub_edges, e_hub = math.nan, None
+        if hub_pts is not None and float((clamp - back) @ e) >= max(20 * px_m, 2.0 * hub_w):
+            # A long hub: its axis from its two long edges alone (the direction's noise
+            # falls as length^-1.5), a start for the joint fit and a check on it.
+            e_hub, _, _, hub_w, sd_hub_edges = hub_axis(*hub_pts, back, clamp, e, margin)
+            e = e_hub
+        hub_a, hub_b = _clear_of_faces(hub_pts, back, clamp, e, margin)
+        # The axis and the clamped centre line together: the beam leaves the clamp, on
+        # the axis a known distance from the pivot (the plane's origin), along the axis.
+        joint = None
+        for _ in range(6):
+            n = np.array([-e[1], e[0]])
+            d_clamp = float(clamp @ e)
+            on_axis = d_clamp * e
+            la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
+            amax = float(max(la[:, 0].max(), lb[:, 0].max()))
+            ha = np.column_stack([(hub_a - on_axis) @ e, (hub_a - on_axis) @ n])
+            hb = np.column_stack([(hub_b - on_axis) @ e, (hub_b - on_axis) @ n])
+            res = fit_clamped_joint(la, lb, ha, hb, self.poly_degree, amax, d_clamp)
+            if isinstance(res, str):
+                raise FrameFailure(res)
+            joint = res
+            turn = joint.rotation_rad
+            c, sn = math.cos(turn), math.sin(turn)
+            e = np.array([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
+            # The fitted shape is already in the turned frame to first order; what a
+            # turn below 1e-4 rad leaves is below 1e-10 m at the tip: no second fit.
+            if abs(turn) < _SMALL_TURN_RAD:
+                break
+        assert joint is not None
+        n = np.array([-e[1], e[0]])
+        clamp = d_clamp * e
+        sd_hub = joint.rotation_sd_rad
+        if math.isfinite(joint.hub_width):
+            hub_w = joint.hub_width
+        fit = joint.fit
+        if e_hub is not None:
+            gap = math.asin(max(-1.0, min(1.0, float(e_hub[0] * e[1] - e_hub[1] * e[0]))))
+            if abs(gap) > 5.0 * math.hypot(sd_hub_edges, sd_hub):
+                raise FrameFailure(
+                    f"the hub's edges and the beam's root disagree on the hub angle by "
+                    f"{math.degrees(gap):.3f} deg: hub or beam mis-measured"
+                )
         centre, rms, width = fit.centre, fit.rms, fit.width
         if abs(width - w_beam) > 0.15 * w_beam:
             raise FrameFailure(
@@ -172,8 +224,15 @@ class Measurer:
                 f"calibration's {w_beam * 1e3:.1f} mm"
             )
         if blur > self.max_blur_px:
-            raise FrameFailure(f"motion blur: beam edges spread {blur:.1f} px")
-        if abs(fit.root_slope_rad) > self.max_root_slope_rad:
+            raise FrameFailure(
+                f"motion blur: beam edges spread {blur:.1f} px ({blur * px_m * 1e3:.1f} mm of "
+                f"smear in the plane; measured up to {self.max_blur_px:.0f} px)"
+            )
+        # The clamped prior's check: a hub or beam mis-measured shows as a slope at the
+        # root, beyond what the edges' noise explains (a noisy frame's slope is as
+        # uncertain as its tip, which the uncertainty limit below refuses).
+        slope_sd = fit.root_slope_sd_rad if math.isfinite(fit.root_slope_sd_rad) else 0.0
+        if abs(fit.root_slope_rad) > max(self.max_root_slope_rad, 4.0 * slope_sd):
             raise FrameFailure(
                 f"the beam leaves the clamp at {math.degrees(fit.root_slope_rad):.2f} deg to "
                 "the hub axis (a clamped beam leaves along it): hub or beam mis-measured"
@@ -185,9 +244,9 @@ class Measurer:
                 f"beam length {arc * 1e3:.0f} mm along the centre line disagrees with "
                 f"{length * 1e3:.0f} mm (occluded or out of view?)"
             )
-        # Predicted noise of the tip's lateral deflection: the hub's direction carried to
-        # the tip, and the fitted centre line's own uncertainty at its end.
-        sd_tip = math.hypot(sd_hub * length, fit.tip_sd)
+        # Predicted noise of the tip's lateral deflection: the centre line's uncertainty
+        # at its end, the axis's (fitted with it) included.
+        sd_tip = fit.tip_sd
         if sd_tip > self.max_tip_std_m:
             raise FrameFailure(
                 f"too noisy: tip lateral uncertainty {sd_tip * 1e3:.2f} mm "
@@ -270,14 +329,13 @@ class Measurer:
         n: NDArray[np.float64],
         hub_w: float,
         w_beam: float,
-    ) -> tuple[tuple[NDArray, NDArray], tuple[NDArray, NDArray], float]:
-        """Edge points (plane, m) of the hub (past both its faces, along the rough axis)
-        and of the beam (along its rough centre line, from past the shoulders to short of
-        the tip), the two strips scanned in one pass; and the beam edges' median ramp
-        width (px)."""
+    ) -> tuple[tuple[NDArray, NDArray] | None, tuple[NDArray, NDArray], float]:
+        """Edge points (plane, m) of the hub (past both its faces, along the rough axis;
+        None when it is too short to show any clear of them) and of the beam (along its
+        rough centre line, from past the shoulders to short of the tip), the two strips
+        scanned in one pass; and the beam edges' median ramp width (px)."""
         hub_len = float((clamp - back) @ e)
-        if hub_len < max(20 * self.px_m, 2.0 * hub_w):
-            raise FrameFailure("hub too short in view to fit its axis")
+        with_hub = hub_len - 2 * _END_MARGIN_PX * self.px_m >= 8 * self.px_m
         # A scan line (a pixel row or column) crosses the hub's two edges up to a hub
         # width apart along the axis: scan past both faces, keep points clear of them.
         ext = 0.5 * hub_w
@@ -297,6 +355,9 @@ class Measurer:
         aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
         bq = np.interp(aq, a, b)
         beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
+        if not with_hub:
+            ((pa, pb, spread),) = self._strip_points(image, [(beam_line, 0.5 * w_beam)])
+            return None, (pa, pb), median(spread)
         (ha, hb, _), (pa, pb, spread) = self._strip_points(
             image, [(hub_line, 0.5 * hub_w), (beam_line, 0.5 * w_beam)]
         )
@@ -362,3 +423,22 @@ class Measurer:
         a_tip = a_ref + dist * t[0]
         b_tip = b_ref + dist * t[1]
         return float(a_tip), float(b_tip)
+
+
+def _clear_of_faces(
+    hub_pts: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+    back: NDArray[np.float64],
+    front: NDArray[np.float64],
+    e: NDArray[np.float64],
+    margin: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The hub's edge points (plane, m) ``margin`` clear of its end faces (none when the
+    hub gave none)."""
+    if hub_pts is None:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    length = float((front - back) @ e)
+    out = []
+    for p in hub_pts:
+        sa = (p - back) @ e
+        out.append(p[(sa > margin) & (sa < length - margin)])
+    return out[0], out[1]

@@ -11,7 +11,9 @@ plane-to-image homography; pixels near edges are supersampled (``supersample`` x
 ``supersample`` samples through the local Jacobian of the pixel-to-plane map). Static
 parts are drawn once per :class:`SceneSpec` (:func:`static_layers`); a frame redraws only
 a band around the hub and beam. Motion blur averages the coverage of several poses over
-the exposure.
+the exposure (:meth:`BeamMotion.exposure_poses
+<vision.synthetic.scene.BeamMotion.exposure_poses>` samples a moving beam's); only pixels
+near a pose's edges are supersampled, so an exposure of a hundred poses stays cheap.
 """
 
 from __future__ import annotations
@@ -336,26 +338,69 @@ def _draw_dynamic(
     cov_hub = np.zeros(len(ys))
     cov_beam = np.zeros(len(ys))
     half_w = spec.beam_width_m / 2
+    hub_a0, hub_a1 = spec.hub_offset_m - spec.hub_length_m, spec.hub_offset_m
+    hub_hw = spec.hub_width_m / 2
+    # A supersample lies within |offset| <= 0.5 px of its pixel's centre along both image
+    # axes, so within ``fp`` (the largest pixel footprint) of it in the plane: a pixel
+    # whose centre is farther than ``fp`` from every edge of a shape is wholly in or out
+    # of it, and only the others are supersampled (the same coverage, a fraction of the
+    # work when many poses sample an exposure).
+    fp = maps["footprint_m"]
     for sh in shapes:
         e, n = sh.e, sh.n
         pa = px * e[0] + py * e[1]
         pb = px * n[0] + py * n[1]
-        da = dx * e[0] + dy * e[1]
-        db = dx * n[0] + dy * n[1]
-        a_sub = pa[:, None] + da
-        b_sub = pb[:, None] + db
-        in_hub = (
-            (a_sub <= spec.hub_offset_m)
-            & (a_sub >= spec.hub_offset_m - spec.hub_length_m)
-            & (np.abs(b_sub) <= spec.hub_width_m / 2)
+        # The hub (a rectangle in the hub frame).
+        out_h = np.maximum(
+            np.maximum(pa - hub_a1, hub_a0 - pa), np.abs(pb) - hub_hw
+        )  # > 0 outside, < 0 inside (distance to the nearest side, or less)
+        in_hub_c = out_h < -fp
+        near_h = np.flatnonzero(np.abs(out_h) <= fp)
+        in_hub = in_hub_c.astype(np.float64)
+        if near_h.size:
+            da = dx[near_h] * e[0] + dy[near_h] * e[1]
+            db = dx[near_h] * n[0] + dy[near_h] * n[1]
+            a_sub = pa[near_h, None] + da
+            b_sub = pb[near_h, None] + db
+            sub = (a_sub <= hub_a1) & (a_sub >= hub_a0) & (np.abs(b_sub) <= hub_hw)
+            in_hub[near_h] = sub.mean(axis=1)
+        # The beam: pixels within reach of this pose's strip (the centre line's b at
+        # the pixel's a, with room for the slope), then their foot on the centre line.
+        bb = np.interp(pa, sh.a, sh.b)
+        slack = (half_w + 2 * fp) * 1.5 + 2 * fp
+        cand = np.flatnonzero(
+            (np.abs(pb - bb) <= slack) & (pa >= sh.a[0] - 0.004 - fp) & (pa <= sh.a[-1] + slack)
         )
-        s, d, ta, tb = sh.foot(pa, pb)
-        s_sub = s[:, None] + da * ta[:, None] + db * tb[:, None]
-        d_sub = d[:, None] - da * tb[:, None] + db * ta[:, None]
-        in_beam = (np.abs(d_sub) <= half_w) & (s_sub <= sh.length) & (s_sub >= -0.002)
-        in_beam &= ~in_hub
-        cov_hub += in_hub.mean(axis=1)
-        cov_beam += in_beam.mean(axis=1)
+        in_beam = np.zeros(len(ys))
+        if cand.size:
+            s, d, ta, tb = sh.foot(pa[cand], pb[cand])
+            inside_c = (np.abs(d) < half_w - fp) & (s < sh.length - fp) & (s > -0.002 + fp)
+            edge = ~inside_c & (np.abs(d) <= half_w + fp) & (s <= sh.length + fp)
+            edge &= s >= -0.002 - fp
+            in_beam[cand[inside_c]] = 1.0
+            ke = np.flatnonzero(edge)
+            if ke.size:
+                rows = cand[ke]
+                da = dx[rows] * e[0] + dy[rows] * e[1]
+                db = dx[rows] * n[0] + dy[rows] * n[1]
+                s_sub = s[ke, None] + da * ta[ke, None] + db * tb[ke, None]
+                d_sub = d[ke, None] - da * tb[ke, None] + db * ta[ke, None]
+                sub = (np.abs(d_sub) <= half_w) & (s_sub <= sh.length) & (s_sub >= -0.002)
+                # Minus the hub, subsample by subsample where the hub's edge is near.
+                if near_h.size:
+                    hub_near = np.isin(rows, near_h)
+                    if hub_near.any():
+                        r2 = rows[hub_near]
+                        a2 = pa[r2, None] + dx[r2] * e[0] + dy[r2] * e[1]
+                        b2 = pb[r2, None] + dx[r2] * n[0] + dy[r2] * n[1]
+                        sub[hub_near] &= ~((a2 <= hub_a1) & (a2 >= hub_a0) & (np.abs(b2) <= hub_hw))
+                in_beam[rows] = sub.mean(axis=1)
+            in_beam[in_hub_c] = 0.0
+            # Wholly-in beam pixels beside the hub's edge: the hub takes its share.
+            whole = cand[inside_c]
+            in_beam[whole] = np.minimum(in_beam[whole], 1.0 - in_hub[whole])
+        cov_hub += in_hub
+        cov_beam += in_beam
     cov_hub /= len(shapes)
     cov_beam /= len(shapes)
     y0, y1 = int(ys.min()), int(ys.max()) + 1

@@ -27,6 +27,7 @@ from vision.synthetic.pose import camera_extrinsics, ideal_from_plane
 
 __all__ = [
     "DEFAULT_STATIONS_M",
+    "BeamMotion",
     "BeamPose",
     "Clutter",
     "RenderTruth",
@@ -101,6 +102,79 @@ class BeamPose:
             np.interp(q, self.stations_m, self.lateral_m),
             np.interp(q, self.stations_m, self.longitudinal_m),
         )
+
+
+@dataclass(frozen=True, eq=False)
+class BeamMotion:
+    """The beam's pose at mid-exposure and its velocity then: what a still camera with an
+    open shutter sees is the time-average of the moving beam over the exposure
+    (:meth:`exposure_poses` samples it for :func:`vision.synthetic.render.render_frame`).
+
+    Parameters
+    ----------
+    pose : the shape at mid-exposure.
+    hub_rate_rad_s : the hub's angular velocity.
+    lateral_rate_m_s : (S,) rate of the lateral deflection at ``pose.stations_m`` (the
+        beam's own vibration, in the hub frame); zeros when omitted.
+    """
+
+    pose: BeamPose
+    hub_rate_rad_s: float = 0.0
+    lateral_rate_m_s: NDArray[np.float64] | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.pose, BeamPose):
+            raise TypeError(f"pose must be a BeamPose, got {type(self.pose).__name__}")
+        if not math.isfinite(self.hub_rate_rad_s):
+            raise ParameterError("hub_rate_rad_s", "must be finite")
+        s = self.pose.stations_m
+        v = np.zeros_like(s) if self.lateral_rate_m_s is None else self.lateral_rate_m_s
+        v = np.asarray(v, dtype=np.float64).ravel()
+        if v.shape != s.shape or not np.all(np.isfinite(v)):
+            raise ParameterError(
+                "lateral_rate_m_s",
+                f"must be finite with the shape of the pose's stations {s.shape}",
+            )
+        object.__setattr__(self, "lateral_rate_m_s", v)
+
+    def at(self, dt_s: float) -> BeamPose:
+        """The pose ``dt_s`` after mid-exposure (the velocity held over the exposure)."""
+        p = self.pose
+        assert self.lateral_rate_m_s is not None
+        return BeamPose(
+            p.hub_angle_rad + self.hub_rate_rad_s * dt_s,
+            p.stations_m,
+            p.lateral_m + self.lateral_rate_m_s * dt_s,
+            p.longitudinal_m,
+        )
+
+    def tip_speed_m_s(self, hub_offset_m: float) -> float:
+        """Speed of the tip across the beam (m/s): the hub's rotation carried to the tip
+        (``hub_offset_m`` + the beam's length from the pivot) plus the beam's own rate."""
+        assert self.lateral_rate_m_s is not None
+        p = self.pose
+        reach = hub_offset_m + p.stations_m[-1] + p.longitudinal_m[-1]
+        return abs(self.hub_rate_rad_s * reach + self.lateral_rate_m_s[-1])
+
+    def tip_smear_m(self, exposure_s: float, hub_offset_m: float) -> float:
+        """How far the tip moves across the beam during the exposure (m)."""
+        return self.tip_speed_m_s(hub_offset_m) * exposure_s
+
+    def exposure_poses(
+        self, exposure_s: float, hub_offset_m: float, max_step_m: float = 2e-4
+    ) -> list[BeamPose]:
+        """Poses at the midpoints of equal slices of the exposure, enough slices that
+        the tip moves at most ``max_step_m`` per slice (the renderer averages their
+        coverage: the midpoint rule for the time-average, exact for the smear's width to
+        a slice). One pose for a still beam."""
+        if not math.isfinite(exposure_s) or exposure_s < 0:
+            raise ParameterError("exposure_s", f"must be >= 0, got {exposure_s!r}")
+        if not max_step_m > 0:
+            raise ParameterError("max_step_m", f"must be > 0, got {max_step_m!r}")
+        smear = self.tip_smear_m(exposure_s, hub_offset_m)
+        n = max(1, math.ceil(smear / max_step_m))
+        t = (np.arange(n) + 0.5) / n - 0.5
+        return [self.at(float(k) * exposure_s) for k in t]
 
 
 @dataclass(frozen=True)

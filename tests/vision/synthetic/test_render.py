@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vision.synthetic.render import render_frame
-from vision.synthetic.scene import BeamPose
+from vision.synthetic.scene import BeamMotion, BeamPose
 
 
 def test_straight_beam_centre_line_matches_the_geometry(clean_spec, vt) -> None:
@@ -63,3 +63,33 @@ def test_motion_blur_spreads_the_beam(clean_spec, vt) -> None:
 def test_no_poses_are_refused(clean_spec, vt) -> None:
     with pytest.raises(ValueError, match="poses"):
         render_frame(clean_spec, [])
+
+
+@pytest.mark.slow
+def test_a_blurred_frame_is_the_time_average_of_sharp_ones(vt) -> None:
+    """Coverage and lighting are linear: the frame of a motion is the mean of the frames
+    of its poses (to the 8-bit rounding of each), whatever the hub's size."""
+    spec = vt.make_spec(noise_dn=0.0, seed=4, hub_length_m=0.068, hub_width_m=0.051)
+    motion = BeamMotion(vt.bent(math.radians(280), 0.03), 12.0)
+    poses = motion.exposure_poses(0.0005, 0.008, max_step_m=1e-3)
+    assert len(poses) == 6  # 12 rad/s x 0.843 m x 0.5 ms = 5.1 mm of tip smear
+    blurred = render_frame(spec, poses).image.astype(float)
+    mean = np.mean([render_frame(spec, [p]).image.astype(float) for p in poses], axis=0)
+    assert np.abs(blurred - mean).max() <= 1.0
+    assert np.abs(blurred - render_frame(spec, poses[2:3]).image).max() > 50
+
+
+def test_the_hub_is_drawn_to_its_size(vt) -> None:
+    """A 68 x 51 mm clamp block ending 8 mm past the pivot: bright inside, background
+    just beyond its back face and beside it."""
+    spec = vt.make_spec(noise_dn=0.0, seed=4, hub_length_m=0.068, hub_width_m=0.051)
+    th = math.radians(290)
+    image = render_frame(spec, [BeamPose.straight(th, vt.L_M)]).image
+    e = np.array([math.cos(th), math.sin(th)])
+    n = np.array([-e[1], e[0]])
+    inside = [(-0.05, 0.02), (-0.01, -0.02), (0.004, 0.0)]
+    outside = [(-0.066, 0.0), (-0.03, 0.031), (0.012, 0.02)]
+    for pts, lo, hi in ((inside, 150, 256), (outside, 0, 60)):
+        px = spec.to_px(np.array([a * e + b * n for a, b in pts]))
+        v = image[np.rint(px[:, 1]).astype(int), np.rint(px[:, 0]).astype(int)]
+        assert np.all((v >= lo) & (v < hi)), (pts, v)
