@@ -8,6 +8,7 @@ from typing import Any
 
 from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
+from pipelines.paths import refuse_aliases
 from pipelines.progress import Progress
 from pipelines.rig import Rig
 
@@ -62,6 +63,7 @@ def hardware_devices(rig: Rig) -> tuple[Any, Any, dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     from pipelines.acquire.capture import capture_run
 
+    refuse_aliases({"--out": args.out}, {"--rig": args.rig})
     rig = rig_from_args(args)
     if not math.isfinite(args.duration) or args.duration <= 0:
         raise BeambenchError(

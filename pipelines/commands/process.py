@@ -8,6 +8,7 @@ from pathlib import Path
 
 from pipelines.commands._args import add_rig_argument, add_viewer_arguments
 from pipelines.errors import BeambenchError
+from pipelines.paths import refuse_aliases
 from sim.models.registry import MODELS
 
 HELP = "measure frames, reconstruct, simulate and compare a run; write RESULTS.nc"
@@ -57,6 +58,10 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not log_path.is_file():
         raise BeambenchError(f"{log_path}: no such file")
+    refuse_aliases(
+        {"--out": out, "--rrd": args.rrd},
+        {"the log": log_path, "--rig": args.rig, "--calibration": args.calibration},
+    )
     check_output_folder(out, "--out")
     if args.rrd:
         check_output_folder(Path(args.rrd), "--rrd")

@@ -11,6 +11,7 @@ from typing import Any
 
 from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
+from pipelines.paths import refuse_aliases
 from pipelines.results.sim_dataset import (
     check_output_path,
     modes_dataset,
@@ -242,6 +243,7 @@ def _print_table2(rig: Rig) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_aliases({"--out": args.out}, {"--rig": args.rig})
     rig = rig_from_args(args)
     _check(args)
     if args.out is not None:
