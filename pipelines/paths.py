@@ -8,7 +8,9 @@ the same file, a hard link or a symbolic link, is caught as surely as the same p
 
 from __future__ import annotations
 
+import contextlib
 import os
+import uuid
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -70,3 +72,36 @@ def refuse_inputs_among(
                     f"{option} {root}: would replace {target}, which is {in_label} {inp}; "
                     "an output never replaces an input"
                 )
+
+
+def check_writable_output(path: str | os.PathLike[str], option: str) -> Path:
+    """Refuse, before any work, an output file whose folder is missing or refuses a new
+    file (``/proc``, a read-only mount, no permission): a file is created beside it and
+    removed, since ``os.access`` says yes to root wherever a write would still fail."""
+    out = Path(path)
+    folder = out.absolute().parent
+    if not folder.is_dir():
+        raise BeambenchError(f"{option} {out}: folder {folder} does not exist")
+    if out.is_dir():
+        raise BeambenchError(f"{option} {out}: is a folder")
+    probe = folder / f".{out.name}.{uuid.uuid4().hex}.probe"
+    try:
+        with open(probe, "xb") as f:
+            f.write(b"\0")
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        raise BeambenchError(
+            f"{option} {out}: cannot write in {folder} ({exc.strerror or exc})"
+        ) from None
+    finally:
+        with contextlib.suppress(OSError):
+            probe.unlink()
+    return out
+
+
+def write_failed(path: str | os.PathLike[str], exc: BaseException) -> BeambenchError:
+    """The error for an output that could not be written after the work (a full disk):
+    it names the file and the reason; any earlier file of that name is as it was."""
+    reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+    return BeambenchError(f"{path}: cannot write ({reason}); an earlier file there is unchanged")

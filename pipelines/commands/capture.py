@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import shutil
 from pathlib import Path
 from typing import Any
 
 from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
-from pipelines.paths import refuse_aliases
+from pipelines.paths import check_writable_output, refuse_aliases
 from pipelines.progress import Progress
 from pipelines.rig import Rig
 
@@ -85,10 +84,7 @@ def check_capture_cost(rig: Rig, duration_s: float, backend: str, out: Path) -> 
             f"({limit / 3600:g} h) is captured with --backend {backend}"
         )
     folder = out.absolute().parent
-    if not folder.is_dir():
-        raise BeambenchError(f"--out {out}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise BeambenchError(f"--out {out}: folder {folder} is not writable")
+    check_writable_output(out, "--out")
     free = shutil.disk_usage(folder).free
     if log_bytes > free:
         raise BeambenchError(

@@ -11,7 +11,7 @@ from typing import Any
 
 from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
-from pipelines.paths import refuse_aliases
+from pipelines.paths import check_writable_output, refuse_aliases
 from pipelines.results.sim_dataset import (
     check_output_path,
     modes_dataset,
@@ -320,6 +320,7 @@ def run(args: argparse.Namespace) -> int:
             check_output_path(args.out)
         except ValueError as exc:
             raise BeambenchError(f"--out {exc}") from None
+        check_writable_output(args.out, "--out")
     if args.scene == "linkage":
         _print_linkage(scenes.linkage(rig.linkage), args.json)
         return 0
