@@ -42,6 +42,7 @@ from vision.homography import (
 
 DEFAULT_BEAM_LENGTH_M = 0.835
 DEFAULT_BEAM_WIDTH_M = 0.01905
+MAX_BEAM_LENGTH_M = 10.0  # a laboratory beam (as the rig's limit)
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +86,12 @@ class Calibration:
                 raise ParameterError(name, f"must be a positive number, got {v!r}")
         if self.beam_width_m >= self.beam_length_m:
             raise ParameterError("beam_width_m", "must be smaller than beam_length_m")
+        for name, limit in (("beam_length_m", MAX_BEAM_LENGTH_M), ("beam_width_m", 0.5)):
+            if getattr(self, name) > limit:
+                raise ParameterError(
+                    name,
+                    f"must be at most {limit:g} m (a laboratory beam), got {getattr(self, name)!r}",
+                )
         object.__setattr__(self, "image_points_px", img)
         object.__setattr__(self, "plane_points_m", pln)
         object.__setattr__(self, "camera_matrix", k)

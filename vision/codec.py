@@ -7,12 +7,19 @@ OpenCV reads (what a real camera or a folder of stills gives).
 from __future__ import annotations
 
 import struct
+import zlib
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.errors import DecodeError, EncodeError, ImageSizeError, ParameterError
+from vision.errors import (
+    CorruptImageError,
+    DecodeError,
+    EncodeError,
+    ImageSizeError,
+    ParameterError,
+)
 
 # the largest image decoded (a side, px): the largest camera sensors (16k); a 16384 x 16384
 # gray image is 268 MB, so a forged header cannot make the decoder allocate more
@@ -21,6 +28,28 @@ MAX_SIDE_PX = 16384
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # JPEG start-of-frame markers (baseline, progressive, lossless, ...): not DHT, JPG or DAC
 _SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+
+
+def check_png(data: bytes) -> None:
+    """Verify a PNG's chunks (each CRC, the closing IEND) before the decoder sees them:
+    libpng reports damage on the process's stderr and may decode what it can."""
+    i = 8
+    while True:
+        if i + 12 > len(data):
+            raise CorruptImageError(f"the PNG ends at byte {len(data)} before its IEND chunk")
+        (length,) = struct.unpack(">I", data[i : i + 4])
+        kind = data[i + 4 : i + 8].decode("latin-1")
+        end = i + 8 + length
+        if end + 4 > len(data):
+            raise CorruptImageError(
+                f"the PNG's {kind} chunk at byte {i} runs past the end ({len(data)} bytes)"
+            )
+        (crc,) = struct.unpack(">I", data[end : end + 4])
+        if zlib.crc32(data[i + 4 : end]) != crc:
+            raise CorruptImageError(f"the PNG's {kind} chunk at byte {i} fails its CRC")
+        if kind == "IEND":
+            return
+        i = end + 4
 
 
 def header_size_px(data: bytes) -> tuple[int, int] | None:
@@ -69,6 +98,8 @@ def decode(data: bytes) -> NDArray[np.uint8]:
     size = header_size_px(raw)
     if size is not None and max(size) > MAX_SIDE_PX:
         raise ImageSizeError(size[0], size[1], MAX_SIDE_PX)
+    if raw[:8] == _PNG_MAGIC:
+        check_png(raw)
     # OpenCV warns on stderr about damaged data; the DecodeError below says it once, so
     # the caller's single error line is not preceded by a library's.
     level = cv2.utils.logging.getLogLevel()

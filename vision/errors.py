@@ -67,6 +67,14 @@ class DecodeError(VisionError, ValueError):
         )
 
 
+class CorruptImageError(VisionError, ValueError):
+    """Image bytes whose own checks fail (a PNG chunk's CRC, a PNG cut short)."""
+
+    def __init__(self, problem: str) -> None:
+        self.problem = problem
+        super().__init__(f"a damaged image: {problem}")
+
+
 class ImageSizeError(VisionError, ValueError):
     """Image bytes whose header claims a size beyond what beambench decodes."""
 
