@@ -119,3 +119,25 @@ def test_a_failed_recording_is_one_error_line(
     err = _one_error_line(["process", str(SAMPLE), "--out", str(out), "--rrd", str(rrd)], capsys)
     assert f"{rrd}: cannot write (File-writer thread shut down prematurely)" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.nc"]  # the .rrd's temporary gone
+
+
+def test_a_calibration_with_points_outside_the_logs_frames_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import numpy as np
+
+    from daq.log import read_run
+    from vision import Calibration
+
+    info = read_run(SAMPLE).camera_info
+    assert info and info["width"] < 5000
+    img = np.array([[100.0, 120.0], [410.0, 90.0], [450.0, 400.0], [80.0, 380.0]])
+    plane = np.array([[0.0, 0.0], [0.1, 0.0], [0.1, -0.1], [0.0, -0.1]])
+    cal = tmp_path / "cal.json"
+    cal.write_text(Calibration(img + np.array([5000.0, 0.0]), plane).to_json())
+    out = tmp_path / "r.nc"
+    err = _one_error_line(
+        ["process", str(SAMPLE), "--out", str(out), "--calibration", str(cal)], capsys
+    )
+    assert str(cal) in err and "registration point (5100, 120) px lies outside the 2048" in err
+    assert not out.exists()
