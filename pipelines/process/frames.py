@@ -128,13 +128,25 @@ def measure_frames(
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
         return _measure_here(rest, calibration, stations_m, method, progress)
     out: list[MeasuredFrame] = []
+    # the chunks handed to the pool before its first result: measured here if no worker
+    # ever answers (workers that die at start, e.g. a user who cannot execute the
+    # interpreter: the pool starts but each worker's exec fails)
+    unanswered: list[list[tuple[int, int, bytes]]] = [first]
     ok = False
     try:
-        for chunk in _pooled(pool, head, chunks, in_flight=4 * n_workers):
+        for chunk in _pooled(pool, head, chunks, in_flight=4 * n_workers, sent=unanswered):
             out.extend(chunk)
+            unanswered.clear()  # answered: a later death is an error, not a fallback
             if progress:
                 progress(len(chunk))
         ok = True
+    except WorkerError as exc:
+        if out:
+            raise
+        _abandon(pool)
+        log.warning("%s; measuring in this process instead", exc)
+        rest = itertools.chain(*unanswered, itertools.chain.from_iterable(chunks))
+        return _measure_here(rest, calibration, stations_m, method, progress)
     finally:
         if ok:
             pool.shutdown(wait=True)
@@ -170,12 +182,14 @@ def _pooled(
     chunks: Iterator[list[tuple[int, int, bytes]]],
     *,
     in_flight: int,
+    sent: list[list[tuple[int, int, bytes]]],
 ) -> Iterator[list[MeasuredFrame]]:
     """Results of ``_measure_chunk`` in order, ``head`` first, at most ``in_flight``
     chunks queued (the frames' bytes stay bounded), each wait watched by :func:`_wait`."""
     pending: collections.deque[Future[list[MeasuredFrame]]] = collections.deque([head])
     try:
         for chunk in chunks:
+            sent.append(chunk)  # the caller clears it at each result
             pending.append(pool.submit(_measure_chunk, chunk))
             if len(pending) >= in_flight:
                 yield _wait(pool, pending.popleft())
@@ -219,12 +233,24 @@ def _workers(pool: ProcessPoolExecutor) -> list[Any]:
 def _abandon(pool: ProcessPoolExecutor) -> None:
     """Stop a failed pool without waiting on workers that may never answer."""
     workers = _workers(pool)
+    # the queue's feeder thread may be blocked writing frames to workers that are gone
+    # (the parent holds the pipe's other end, so the write never fails): without this the
+    # executor's exit handler joins it and the interpreter never exits
+    call_queue = getattr(pool, "_call_queue", None)
+    if call_queue is not None:
+        call_queue.cancel_join_thread()
     pool.shutdown(wait=False, cancel_futures=True)
     for p in workers:
         if p.exitcode is None:
             p.kill()
     for p in workers:
         p.join(timeout=5.0)
+    # with every worker gone, close this process's end of the queue's pipe too: a feeder
+    # blocked on a full pipe then fails (EPIPE) and finishes, so the executor's exit
+    # handler, which joins it, returns and the interpreter exits
+    reader = getattr(call_queue, "_reader", None)
+    if reader is not None:
+        reader.close()
 
 
 def as_arrays(frames: list[MeasuredFrame]) -> dict[str, np.ndarray]:

@@ -160,3 +160,35 @@ def test_process_as_a_user_who_is_not_root(request: pytest.FixtureRequest) -> No
     # in the main process with one warning line instead of a traceback or a hang
     warnings = [x for x in proc.stderr.splitlines() if x.startswith("WARNING")]
     assert all("cannot start frame-measuring worker processes" in x for x in warnings)
+
+
+KILL_AND_EXIT = """
+import os, signal, sys
+sys.path.insert(0, sys.argv[1])
+from tests.pipelines.process.test_frame_workers import CAL, _children, _frames
+from pipelines.process.frames import WorkerError, measure_frames
+
+def kill(n):
+    if not getattr(kill, "done", False):
+        kill.done = True
+        os.kill(_children("multiprocessing.spawn")[0], signal.SIGKILL)
+
+try:
+    measure_frames(_frames(400), CAL, stations_m=(0.2,), workers=2, progress=kill)
+except WorkerError as exc:
+    print("worker error:", exc)
+"""
+
+
+def test_the_interpreter_exits_after_a_worker_died() -> None:
+    # the issue's hang was at exit: the executor's exit handler joined a queue feeder
+    # blocked on a pipe to dead workers. A subprocess that does not exit is a timeout here.
+    proc = subprocess.run(
+        [sys.executable, "-c", KILL_AND_EXIT, str(ROOT)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "worker error: a frame-measuring worker process" in proc.stdout
