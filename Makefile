@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast lint bench reproduce screenshots clean
+.PHONY: demo test test-fast fuzz lint bench reproduce screenshots clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +29,12 @@ lint: $(STAMP)
 test: lint
 	@$(BIN)/python -m pytest -q; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "error: pytest collected no tests" >&2; fi; exit $$rc
+
+# The fuzz suite (tests/fuzz) runs in `make test` with 40 cases a category (160 rig files);
+# this runs it with FUZZ_CASES a category (4x that many rig files) and prints the counts.
+FUZZ_CASES ?= 1000
+fuzz: $(STAMP)
+	BEAMBENCH_FUZZ_CASES=$(FUZZ_CASES) $(BIN)/python -m pytest -q -s -p no:cacheprovider tests/fuzz
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"

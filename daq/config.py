@@ -19,6 +19,22 @@ def _positive(name: str, value: float) -> None:
         raise DaqInputError(f"{name} must be a positive finite number, got {value!r}")
 
 
+def _at_most(name: str, value: float, limit: float, unit: str, why: str) -> None:
+    if not abs(value) <= limit:
+        raise DaqInputError(f"{name} must be at most {limit:g} {unit} ({why}), got {value!r}")
+
+
+# Limits of the hardware this package drives (each error states its reason).
+MAX_POSITION_M = 10.0  # a gauge on a laboratory beam
+MAX_RESISTANCE_OHM = 1e5  # foil and semiconductor gauges are 120 ohm .. 5 kohm
+MAX_GAUGE_FACTOR = 200.0  # semiconductor gauges reach ~150
+MAX_VOLTS = 100.0  # bridge excitation, potentiometer supply and input range
+MAX_ACQUISITION_HZ = 1e6  # a DAQ card's per-channel rate
+MAX_RIPPLE_DB = 10.0
+MAX_ATTENUATION_DB = 200.0  # beyond a 32-bit converter's dynamic range
+MAX_BLOCK_S = 10.0  # one read's worth of samples
+
+
 @dataclass(frozen=True)
 class GaugeConfig:
     """Four axial strain gauges (paper §2): positions from the clamp, in gauge order.
@@ -41,17 +57,22 @@ class GaugeConfig:
         for x in self.positions_m:
             if not math.isfinite(x) or x < 0.0:
                 raise DaqInputError(f"positions_m must be non-negative distances, got {x!r}")
+            _at_most("positions_m", x, MAX_POSITION_M, "m", "a gauge on a laboratory beam")
         if any(b <= a for a, b in zip(self.positions_m, self.positions_m[1:], strict=False)):
             raise DaqInputError(
                 f"positions_m must increase from the clamp outwards, got {self.positions_m!r}"
             )
         _positive("resistance_ohm", self.resistance_ohm)
-        if self.resistance_tolerance_ohm < 0.0:
+        _at_most("resistance_ohm", self.resistance_ohm, MAX_RESISTANCE_OHM, "ohm", "a gauge")
+        if not 0.0 <= self.resistance_tolerance_ohm < self.resistance_ohm:
             raise DaqInputError(
-                f"resistance_tolerance_ohm must be >= 0, got {self.resistance_tolerance_ohm!r}"
+                f"resistance_tolerance_ohm must be >= 0 and below resistance_ohm "
+                f"({self.resistance_ohm!r}), got {self.resistance_tolerance_ohm!r}"
             )
         _positive("gauge_factor", self.gauge_factor)
+        _at_most("gauge_factor", self.gauge_factor, MAX_GAUGE_FACTOR, "(1)", "semiconductor ~150")
         _positive("excitation_v", self.excitation_v)
+        _at_most("excitation_v", self.excitation_v, MAX_VOLTS, "V", "a bridge excitation")
         if self.bridge not in BRIDGE_TYPES:
             raise DaqInputError(f"bridge must be one of {BRIDGE_TYPES}, got {self.bridge!r}")
         if len(self.channels) != len(self.positions_m):
@@ -77,13 +98,17 @@ class PotentiometerConfig:
 
     def __post_init__(self) -> None:
         _positive("supply_v", self.supply_v)
+        _at_most("supply_v", self.supply_v, MAX_VOLTS, "V", "a potentiometer supply")
         _positive("electrical_range_rad", self.electrical_range_rad)
         if self.electrical_range_rad > 2.0 * math.pi:
             raise DaqInputError(
                 f"electrical_range_rad must be at most 2 pi, got {self.electrical_range_rad!r}"
             )
-        if not math.isfinite(self.zero_angle_rad):
-            raise DaqInputError(f"zero_angle_rad must be finite, got {self.zero_angle_rad!r}")
+        if not abs(self.zero_angle_rad) <= 2.0 * math.pi:
+            raise DaqInputError(
+                f"zero_angle_rad must be finite and within +/-2 pi (one turn), "
+                f"got {self.zero_angle_rad!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -118,6 +143,23 @@ class DaqConfig:
             "flush_interval_s",
         ):
             _positive(name, getattr(self, name))
+        _at_most(
+            "acquisition_rate_hz",
+            self.acquisition_rate_hz,
+            MAX_ACQUISITION_HZ,
+            "Hz",
+            "a DAQ card's per-channel rate",
+        )
+        _at_most("passband_ripple_db", self.passband_ripple_db, MAX_RIPPLE_DB, "dB", "a filter")
+        _at_most(
+            "stopband_attenuation_db",
+            self.stopband_attenuation_db,
+            MAX_ATTENUATION_DB,
+            "dB",
+            "beyond a 32-bit converter's range",
+        )
+        _at_most("block_duration_s", self.block_duration_s, MAX_BLOCK_S, "s", "one read")
+        _at_most("pot_range_v", self.pot_range_v, MAX_VOLTS, "V", "an input range")
         if self.passband_hz >= self.stopband_hz:
             raise DaqInputError(
                 f"passband_hz ({self.passband_hz!r}) must be below "

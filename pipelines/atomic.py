@@ -30,6 +30,18 @@ def discard(tmp: str | os.PathLike[str]) -> None:
         Path(tmp).unlink()
 
 
+def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
+    """``path`` replaced by ``data``, whole or not at all: a full disk is one ``OSError``
+    (ENOSPC) from a plain write, and the target is left as it was."""
+    out = Path(path)
+    with atomic_path(out) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+    return out
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """``with atomic_path(out) as tmp: write(tmp)``: ``out`` is replaced by ``tmp`` when

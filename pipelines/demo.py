@@ -21,11 +21,24 @@ from pipelines.acquire.capture import capture_run
 from pipelines.acquire.synthetic import CAMERA_CLOCK_OFFSET_S, SyntheticDevices, build_synthetic
 from pipelines.process.run import Processed, process_run, write_processed
 from pipelines.review.overlays import stream_processed
-from pipelines.review.report import write_report
+from pipelines.review.report import PLOTS, REPORT_NAME, write_report
 from pipelines.review.viewer import open_viewer
 from pipelines.rig import Rig
 
 log = logging.getLogger(__name__)
+
+LOG_NAME = "run.mcap"
+RESULTS_NAME = "results.nc"
+RRD_NAME = "run.rrd"
+# every file the demo writes into its folder (the log's partial name while it is captured)
+OUTPUT_NAMES = (
+    LOG_NAME,
+    LOG_NAME + ".partial",
+    RESULTS_NAME,
+    RRD_NAME,
+    REPORT_NAME,
+    *PLOTS.values(),
+)
 
 
 def _stderr_progress(label: str) -> Callable[[float, float], None] | None:
@@ -101,19 +114,19 @@ def truth_notes(processed: Processed, devices: SyntheticDevices) -> list[str]:
 def run_demo(rig: Rig, out: Path, *, duration_s: float = 20.0) -> dict[str, Path]:
     """Run the whole job; return the outputs by label."""
     timings: dict[str, float] = {}
-    log_path = out / "run.mcap"
+    log_path = out / LOG_NAME
     t0 = time.perf_counter()
     devices = capture_synthetic(rig, log_path, duration_s)
     timings["capture"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     processed = process_run(log_path)
-    results_path = out / "results.nc"
+    results_path = out / RESULTS_NAME
     write_processed(processed, results_path)
     timings["process"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    rrd_path = out / "run.rrd"
+    rrd_path = out / RRD_NAME
     viewer = open_viewer("beambench-demo", rrd_path=rrd_path)
     try:
         stream_processed(processed, log_path, viewer)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import math
 import tomllib
 import types
@@ -28,11 +29,27 @@ from sim.models.registry import MODELS
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 
 DEFAULT_RIG_NAME = "rig.toml"
+DEFAULT_SOURCE = f"<package>/{DEFAULT_RIG_NAME}"
+
+log = logging.getLogger(__name__)
 
 
 # reciprocating: the crank turns (the paper's dynamic runs); free_decay: the hub is held
 # still and the tip is released from a static deflection (the paper's damping runs, §5.2.1)
 SYNTHETIC_SCENES = ("reciprocating", "free_decay")
+
+
+# Upper limits of the synthetic bench's imperfections, each with its reason: noise beyond
+# them buries the signal; the warm-up is simulated before every capture starts (a modal
+# beam settles in about 10 s; 10 min costs minutes of simulation before the first sample).
+SYNTHETIC_LIMITS = {
+    "strain_noise": (1e-3, "m/m RMS", "1000 microstrain: the beam yields near 3000"),
+    "pot_noise_v": (1.0, "V RMS", "a fifth of the supply"),
+    "clock_jitter_s": (1e-2, "s", "a sixth of a frame period at 15 frames/s"),
+    "image_noise_dn": (64.0, "DN RMS", "a quarter of the 8-bit range"),
+    "warmup_s": (600.0, "s", "simulated before the capture starts"),
+}
+MAX_RELEASE_AT_S = 4 * 3600.0
 
 
 @dataclass(frozen=True)
@@ -63,6 +80,9 @@ class SyntheticConfig:
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0.0:
                 raise ValueError(f"{name} must be a non-negative finite number, got {v!r}")
+            limit, unit, why = SYNTHETIC_LIMITS[name]
+            if v > limit:
+                raise ValueError(f"{name} must be at most {limit:g} {unit} ({why}), got {v!r}")
         if not math.isfinite(self.clock_drift_ppm) or abs(self.clock_drift_ppm) > 1000.0:
             raise ValueError(
                 f"clock_drift_ppm must be within +/-1000, got {self.clock_drift_ppm!r}"
@@ -82,9 +102,10 @@ class SyntheticConfig:
                 "strain_offset must be four finite strains within +/-0.01 (m/m), got "
                 f"{list(self.strain_offset)!r}"
             )
-        if not math.isfinite(self.release_at_s) or self.release_at_s < 0.0:
+        if not 0.0 <= self.release_at_s <= MAX_RELEASE_AT_S:
             raise ValueError(
-                f"release_at_s must be a non-negative finite number, got {self.release_at_s!r}"
+                f"release_at_s must be a finite number of seconds within 0..{MAX_RELEASE_AT_S:g} "
+                f"(a capture's length), got {self.release_at_s!r}"
             )
 
 
@@ -136,7 +157,7 @@ def default_rig_text() -> str:
 def load_rig(path: str | Path | None = None) -> Rig:
     """Load and validate a rig file; ``None`` loads the shipped default."""
     if path is None:
-        return parse_rig(default_rig_text(), source=f"<package>/{DEFAULT_RIG_NAME}")
+        return parse_rig(default_rig_text(), source=DEFAULT_SOURCE)
     p = Path(path)
     try:
         text = p.read_text("utf-8")
@@ -175,15 +196,46 @@ def _build(data: dict[str, Any], source: str) -> Rig:
     missing = [name for name in SECTIONS if name not in data]
     if missing:
         raise RigError(source, missing[0], "section is missing")
+    defaults = {} if source == DEFAULT_SOURCE else tomllib.loads(default_rig_text())
     built: dict[str, Any] = {}
     for name, cls in SECTIONS.items():
         section = data[name]
         if not isinstance(section, dict):
             raise RigError(source, name, "must be a table of key = value pairs")
+        section = _fill_missing(cls, section, defaults.get(name, {}), source, name)
         built[name] = _build_section(cls, section, source, name)
     rig = Rig(**built, source=source)
     _cross_check(rig)
     return rig
+
+
+def _field_of(key: str, fields: typing.Collection[str]) -> str:
+    """The dataclass field a key sets: ``x_deg`` sets ``x_rad``."""
+    if key.endswith("_deg") and key[:-4] + "_rad" in fields:
+        return key[:-4] + "_rad"
+    return key
+
+
+def _fill_missing(
+    cls: type, section: dict[str, Any], default: dict[str, Any], source: str, name: str
+) -> dict[str, Any]:
+    """``section`` with every key it lacks taken from the shipped rig's ``default``
+    section, each with a warning naming it (design.md: never filled without a word)."""
+    fields = {f.name for f in dataclasses.fields(cls)}
+    given = {_field_of(k, fields) for k in section}
+    out = dict(section)
+    for key, value in default.items():
+        if _field_of(key, fields) not in given:
+            log.warning(
+                "%s: [%s.%s] is missing; using the shipped default %s = %r",
+                source,
+                name,
+                key,
+                key,
+                value,
+            )
+            out[key] = value
+    return out
 
 
 def _build_section(cls: type, section: dict[str, Any], source: str, name: str) -> Any:
@@ -217,6 +269,8 @@ def _build_section(cls: type, section: dict[str, Any], source: str, name: str) -
 def _convert_degrees(value: Any, source: str, key: str) -> Any:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise RigError(source, key, f"must be a number of degrees, got {value!r}")
+    if not math.isfinite(value):
+        raise RigError(source, key, f"must be a finite number of degrees, got {value!r}")
     return math.radians(float(value))
 
 
@@ -225,6 +279,8 @@ def _coerce(value: Any, hint: Any, source: str, key: str) -> Any:
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise RigError(source, key, f"must be a number, got {type(value).__name__} {value!r}")
+        if not math.isfinite(value):
+            raise RigError(source, key, f"must be a finite number, got {value!r}")
         return float(value)
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -251,8 +307,53 @@ def _coerce(value: Any, hint: Any, source: str, key: str) -> Any:
     raise TypeError(f"rig loader cannot handle the type {hint!r} of {key}")  # a bug, not input
 
 
+def registration_corners_px(rig: Rig) -> Any:
+    """(4, 2) pixels (x, y) of the registration plate's corners seen by the rig's camera
+    pose (ideal pinhole; the lens is left out), or None when a corner is behind it."""
+    import numpy as np
+
+    from vision.camera import camera_matrix
+    from vision.homography import apply_homography
+    from vision.synthetic.pose import camera_extrinsics, ideal_from_plane
+
+    reg, cam = rig.registration, rig.camera
+    half = 0.5 * reg.plate_side_m
+    c, s = math.cos(reg.angle_rad), math.sin(reg.angle_rad)
+    local = np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
+    corners = np.asarray(reg.center_m) + local @ np.array([[c, s], [-s, c]])
+    rotation, translation = camera_extrinsics(rig.camera_pose)
+    depth = corners @ rotation[2, :2] + translation[2]
+    if not np.all(depth > 0.0):
+        return None
+    k = camera_matrix(cam.focal_length_px, cam.width_px, cam.height_px)
+    return apply_homography(ideal_from_plane(k, rotation, translation), corners)
+
+
+def _check_registration_in_view(rig: Rig) -> None:
+    corners = registration_corners_px(rig)
+    w, h = rig.camera.width_px, rig.camera.height_px
+    if corners is None:
+        raise RigError(
+            rig.source,
+            "registration.center_m",
+            "the registration plate is behind the camera (camera_pose)",
+        )
+    inside = (corners[:, 0] >= 0) & (corners[:, 0] <= w) & (corners[:, 1] >= 0)
+    inside &= corners[:, 1] <= h
+    if not inside.all():
+        worst = corners[~inside][0]
+        raise RigError(
+            rig.source,
+            "registration.center_m",
+            f"the registration plate is not wholly in the camera's view: a corner lands at "
+            f"({worst[0]:.0f}, {worst[1]:.0f}) px, outside the {w} x {h} image "
+            "(move the plate or the camera_pose)",
+        )
+
+
 def _cross_check(rig: Rig) -> None:
     """Checks that involve more than one section."""
+    _check_registration_in_view(rig)
     if rig.gauges.positions_m[-1] >= rig.beam.length_m:
         raise RigError(
             rig.source,

@@ -23,6 +23,24 @@ def _non_negative(name: str, value: float) -> None:
         raise SimInputError(name, f"must be a non-negative finite number, got {value!r}")
 
 
+def _at_most(name: str, value: float, limit: float, unit: str, why: str) -> None:
+    """Refuse a (finite, signed-checked) value above a physical limit, saying why."""
+    if not abs(value) <= limit:
+        raise SimInputError(name, f"must be at most {limit:g} {unit} ({why}), got {value!r}")
+
+
+# Physical limits of a bench this software models (each states its reason in the error).
+MAX_LINK_M = 10.0  # a laboratory linkage
+MAX_CRANK_HZ = 20.0  # a bench motor; five times the beam's first mode
+MAX_BEAM_M = 10.0  # a laboratory beam
+MAX_SECTION_M = 0.5  # width and thickness of a slender beam
+YOUNGS_RANGE_PA = (1e5, 1.5e12)  # soft rubber to diamond
+DENSITY_RANGE_KG_M3 = (10.0, 25000.0)  # foams to osmium
+MAX_A0_PER_S = 1e3  # mass-proportional damping: a mode decays in 2 ms at most
+MAX_A1_S = 10.0  # stiffness-proportional damping, s
+MAX_DRIVE_OMEGA_RAD_S = 200.0  # a bench motor's hub motion (32 Hz)
+
+
 @dataclass(frozen=True)
 class LinkageConfig:
     """Planar four-bar of paper §2.1 (Eqs. 1-4): a1 ground, a2 crank, a3 coupler, a4 rocker.
@@ -44,13 +62,17 @@ class LinkageConfig:
     def __post_init__(self) -> None:
         for name in ("ground_m", "crank_m", "coupler_m", "rocker_m", "crank_frequency_hz"):
             _positive(name, getattr(self, name))
+        for name in ("ground_m", "crank_m", "coupler_m", "rocker_m"):
+            _at_most(name, getattr(self, name), MAX_LINK_M, "m", "a laboratory linkage")
+        _at_most("crank_frequency_hz", self.crank_frequency_hz, MAX_CRANK_HZ, "Hz", "a bench motor")
         if self.branch not in (1, -1):
             raise SimInputError(
                 "branch", f"must be 1 (elbow up) or -1 (elbow down), got {self.branch!r}"
             )
-        if not math.isfinite(self.beam_mount_angle_rad):
+        if not abs(self.beam_mount_angle_rad) <= 2.0 * math.pi:
             raise SimInputError(
-                "beam_mount_angle_rad", f"must be finite, got {self.beam_mount_angle_rad!r}"
+                "beam_mount_angle_rad",
+                f"must be finite and within +/-2 pi (one turn), got {self.beam_mount_angle_rad!r}",
             )
         lengths = sorted((self.ground_m, self.crank_m, self.coupler_m, self.rocker_m))
         s, p, q, l = lengths
@@ -97,6 +119,29 @@ class BeamConfig:
         ):
             _positive(name, getattr(self, name))
         _non_negative("hub_offset_m", self.hub_offset_m)
+        _at_most("length_m", self.length_m, MAX_BEAM_M, "m", "a laboratory beam")
+        for name in ("width_m", "thickness_m"):
+            _at_most(name, getattr(self, name), MAX_SECTION_M, "m", "a slender beam")
+        if self.hub_offset_m >= self.length_m:
+            raise SimInputError(
+                "hub_offset_m",
+                f"({self.hub_offset_m!r} m, pivot to clamp) must be shorter than the beam "
+                f"(length_m {self.length_m!r} m)",
+            )
+        lo, hi = YOUNGS_RANGE_PA
+        if not lo <= self.youngs_modulus_pa <= hi:
+            raise SimInputError(
+                "youngs_modulus_pa",
+                f"must be within {lo:g}..{hi:g} Pa (soft rubber to diamond), "
+                f"got {self.youngs_modulus_pa!r}",
+            )
+        lo, hi = DENSITY_RANGE_KG_M3
+        if not lo <= self.density_kg_m3 <= hi:
+            raise SimInputError(
+                "density_kg_m3",
+                f"must be within {lo:g}..{hi:g} kg/m^3 (foam to osmium), "
+                f"got {self.density_kg_m3!r}",
+            )
         if self.thickness_m >= self.width_m:
             raise SimInputError(
                 "thickness_m",
@@ -167,6 +212,10 @@ class DampingConfig:
             raise SimInputError(
                 "law", f"must be one of {', '.join(DAMPING_LAWS)}, got {self.law!r}"
             )
+        for name in ("a0_per_s", "free_decay_a0_per_s"):
+            _at_most(name, getattr(self, name), MAX_A0_PER_S, "1/s", "a mode decays in 2 ms")
+        for name in ("a1_s", "free_decay_a1_s"):
+            _at_most(name, getattr(self, name), MAX_A1_S, "s", "stiffness-proportional")
 
 
 @dataclass(frozen=True)
@@ -179,3 +228,11 @@ class DriveConfig:
     def __post_init__(self) -> None:
         _positive("paper_amplitude_rad", self.paper_amplitude_rad)
         _positive("paper_omega_rad_s", self.paper_omega_rad_s)
+        _at_most("paper_amplitude_rad", self.paper_amplitude_rad, math.pi, "rad", "half a turn")
+        _at_most(
+            "paper_omega_rad_s",
+            self.paper_omega_rad_s,
+            MAX_DRIVE_OMEGA_RAD_S,
+            "rad/s",
+            "a bench motor",
+        )

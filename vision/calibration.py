@@ -42,6 +42,7 @@ from vision.homography import (
 
 DEFAULT_BEAM_LENGTH_M = 0.835
 DEFAULT_BEAM_WIDTH_M = 0.01905
+MAX_BEAM_LENGTH_M = 10.0  # a laboratory beam (as the rig's limit)
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +86,12 @@ class Calibration:
                 raise ParameterError(name, f"must be a positive number, got {v!r}")
         if self.beam_width_m >= self.beam_length_m:
             raise ParameterError("beam_width_m", "must be smaller than beam_length_m")
+        for name, limit in (("beam_length_m", MAX_BEAM_LENGTH_M), ("beam_width_m", 0.5)):
+            if getattr(self, name) > limit:
+                raise ParameterError(
+                    name,
+                    f"must be at most {limit:g} m (a laboratory beam), got {getattr(self, name)!r}",
+                )
         object.__setattr__(self, "image_points_px", img)
         object.__setattr__(self, "plane_points_m", pln)
         object.__setattr__(self, "camera_matrix", k)
@@ -103,6 +110,16 @@ class Calibration:
         if not (np.all(w > 0) or np.all(w < 0)):
             raise CalibrationError(
                 "the points are not in a consistent order (the plane's horizon crosses them)",
+                section="registration",
+            )
+        # image x right, y down against the plane's X, Y (right-handed, seen from +Z): a
+        # camera sees the plane with its orientation reversed, the Jacobian of pixels ->
+        # plane, det(H) / w^3, negative. Positive is a mirror image: the points' pairing
+        # is wrong (or the plane was seen from behind), and hub angles would flip sign.
+        if np.linalg.det(fit.matrix) / w[0] ** 3 > 0:
+            raise CalibrationError(
+                "the plane is mirrored: image points and plane points pair up as a mirror "
+                "image (the plane's X, Y must appear counter-clockwise as the image's x, -y)",
                 section="registration",
             )
         object.__setattr__(self, "fit", fit)
@@ -179,17 +196,18 @@ def calibration_from_dict(data: Any) -> Calibration:
     beam = data.get("beam", {}) or {}
     if not isinstance(cam, dict) or not isinstance(beam, dict):
         raise CalibrationError("'camera' and 'beam' must be objects")
+    img = _point_list(reg["image_points_px"], "registration.image_points_px")
+    pln = _point_list(reg["plane_points_m"], "registration.plane_points_m")
+    if np.any(img < 0.0):
+        raise CalibrationError(
+            "registration.image_points_px: a point has a negative pixel coordinate "
+            "(outside the image, whose corner is (0, 0))"
+        )
     try:
-        img = np.asarray(reg["image_points_px"], dtype=np.float64)
-        pln = np.asarray(reg["plane_points_m"], dtype=np.float64)
         matrix = None if cam.get("matrix") is None else np.asarray(cam["matrix"], float)
         dist = None if cam.get("distortion") is None else np.asarray(cam["distortion"], float)
     except (TypeError, ValueError) as exc:
-        raise CalibrationError(f"a point list or camera array is not numeric ({exc})") from None
-    if len(img) < 4:
-        raise CalibrationError(
-            f"registration.image_points_px needs 4 or more points, got {len(img)}"
-        )
+        raise CalibrationError(f"a camera array is not numeric ({exc})") from None
     for key in beam:
         if key not in ("length_m", "width_m"):
             raise CalibrationError(f"unknown key beam.{key}")
@@ -198,9 +216,52 @@ def calibration_from_dict(data: Any) -> Calibration:
         plane_points_m=pln,
         camera_matrix=matrix,
         distortion=dist,
-        beam_length_m=float(beam.get("length_m", DEFAULT_BEAM_LENGTH_M)),
-        beam_width_m=float(beam.get("width_m", DEFAULT_BEAM_WIDTH_M)),
+        beam_length_m=_number(beam.get("length_m", DEFAULT_BEAM_LENGTH_M), "beam.length_m"),
+        beam_width_m=_number(beam.get("width_m", DEFAULT_BEAM_WIDTH_M), "beam.width_m"),
     )
+
+
+def _point_list(value: Any, key: str) -> NDArray[np.float64]:
+    """A JSON list of four or more [x, y] pairs of finite numbers as an (N, 2) array."""
+    shape_hint = "a list of 4 or more numeric [x, y] pairs: shape (N, 2)"
+    if not isinstance(value, list) or not all(
+        isinstance(p, list)
+        and len(p) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in p)
+        for p in value
+    ):
+        raise CalibrationError(f"{key} must be {shape_hint}, got {_brief(value)}")
+    arr = np.asarray(value, dtype=np.float64).reshape(-1, 2)
+    if len(arr) < 4:
+        raise CalibrationError(f"{key} needs 4 or more points, got {len(arr)}")
+    if not np.all(np.isfinite(arr)):
+        raise CalibrationError(f"{key} must be finite numbers")
+    return arr
+
+
+def _number(value: Any, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise CalibrationError(f"{key} must be a number, got {_brief(value)}")
+    return float(value)
+
+
+def _brief(value: Any) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_points_in_image(cal: Calibration, width_px: int, height_px: int) -> None:
+    """Refuse a calibration whose registration points lie outside a ``width_px`` x
+    ``height_px`` image: it was made for another camera or image size."""
+    pts = cal.image_points_px
+    outside = (pts[:, 0] > width_px) | (pts[:, 1] > height_px) | (pts < 0).any(axis=1)
+    if outside.any():
+        x, y = pts[outside][0]
+        raise CalibrationError(
+            f"registration point ({x:g}, {y:g}) px lies outside the {width_px} x {height_px} "
+            "image (a calibration of another camera or image size)",
+            section="registration",
+        )
 
 
 def load_calibration(path: str | Path) -> Calibration:

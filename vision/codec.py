@@ -6,11 +6,81 @@ OpenCV reads (what a real camera or a folder of stills gives).
 
 from __future__ import annotations
 
+import struct
+import zlib
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.errors import DecodeError, EncodeError, ParameterError
+from vision.errors import (
+    CorruptImageError,
+    DecodeError,
+    EncodeError,
+    ImageSizeError,
+    ParameterError,
+)
+
+# the largest image decoded (a side, px): the largest camera sensors (16k); a 16384 x 16384
+# gray image is 268 MB, so a forged header cannot make the decoder allocate more
+MAX_SIDE_PX = 16384
+
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+# JPEG start-of-frame markers (baseline, progressive, lossless, ...): not DHT, JPG or DAC
+_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+
+
+def check_png(data: bytes) -> None:
+    """Verify a PNG's chunks (each CRC, the closing IEND) before the decoder sees them:
+    libpng reports damage on the process's stderr and may decode what it can."""
+    i = 8
+    while True:
+        if i + 12 > len(data):
+            raise CorruptImageError(f"the PNG ends at byte {len(data)} before its IEND chunk")
+        (length,) = struct.unpack(">I", data[i : i + 4])
+        kind = data[i + 4 : i + 8].decode("latin-1")
+        end = i + 8 + length
+        if end + 4 > len(data):
+            raise CorruptImageError(
+                f"the PNG's {kind} chunk at byte {i} runs past the end ({len(data)} bytes)"
+            )
+        (crc,) = struct.unpack(">I", data[end : end + 4])
+        if zlib.crc32(data[i + 4 : end]) != crc:
+            raise CorruptImageError(f"the PNG's {kind} chunk at byte {i} fails its CRC")
+        if kind == "IEND":
+            return
+        i = end + 4
+
+
+def header_size_px(data: bytes) -> tuple[int, int] | None:
+    """``(width, height)`` from a PNG or JPEG header without decoding, or None when the
+    bytes are neither (or the header is cut short)."""
+    if data[:8] == _PNG_MAGIC and len(data) >= 24 and data[12:16] == b"IHDR":
+        width, height = struct.unpack(">II", data[16:24])
+        return int(width), int(height)
+    if data[:2] != b"\xff\xd8":
+        return None
+    i = 2
+    while i + 4 <= len(data):
+        if data[i] != 0xFF:
+            return None
+        marker = data[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        if marker in (0x01, *range(0xD0, 0xD8)):  # markers without a length
+            i += 2
+            continue
+        (length,) = struct.unpack(">H", data[i + 2 : i + 4])
+        if marker in _SOF:
+            if i + 9 > len(data):
+                return None
+            height, width = struct.unpack(">HH", data[i + 5 : i + 9])
+            return int(width), int(height)
+        if length < 2:
+            return None
+        i += 2 + length
+    return None
 
 
 def decode(data: bytes) -> NDArray[np.uint8]:
@@ -21,9 +91,15 @@ def decode(data: bytes) -> NDArray[np.uint8]:
     """
     if not isinstance(data, bytes | bytearray | memoryview):
         raise TypeError(f"data must be bytes, got {type(data).__name__}")
-    buf = np.frombuffer(bytes(data), dtype=np.uint8)
+    raw = bytes(data)
+    buf = np.frombuffer(raw, dtype=np.uint8)
     if buf.size == 0:
         raise DecodeError(0)
+    size = header_size_px(raw)
+    if size is not None and max(size) > MAX_SIDE_PX:
+        raise ImageSizeError(size[0], size[1], MAX_SIDE_PX)
+    if raw[:8] == _PNG_MAGIC:
+        check_png(raw)
     # OpenCV warns on stderr about damaged data; the DecodeError below says it once, so
     # the caller's single error line is not preceded by a library's.
     level = cv2.utils.logging.getLogLevel()

@@ -24,6 +24,32 @@ def _positive(name: str, value: float) -> None:
         raise ParameterError(name, f"must be a positive finite number, got {value!r}")
 
 
+def _at_most(name: str, value: float, limit: float, unit: str, why: str) -> None:
+    if not abs(value) <= limit:
+        raise ParameterError(name, f"must be at most {limit:g} {unit} ({why}), got {value!r}")
+
+
+def _finite_pair(name: str, value: tuple[float, ...], limit_m: float) -> None:
+    if len(value) != 2:
+        raise ParameterError(name, f"must be (x, y), got {value!r}")
+    if not all(abs(v) <= limit_m for v in value):
+        raise ParameterError(
+            name, f"must be finite and within +/-{limit_m:g} m of the pivot, got {value!r}"
+        )
+
+
+# Limits of the cameras this package drives (each error states its reason).
+MAX_SIDE_PX = 16384  # the largest sensors made (16k)
+MAX_FRAME_RATE_HZ = 1000.0  # a high-speed machine-vision camera
+# pixels per second a camera delivers and beambench can encode and measure: 2048 x 1536 at
+# 150 frames/s, 4096 x 3072 at 37; what a USB3/GigE camera of that size does
+MAX_PIXEL_RATE_PX_S = 5e8
+MAX_LATENCY_S = 10.0  # trigger to timestamp
+MAX_DISTORTION = 1e3  # |k|, |p|: a fisheye's coefficients stay well below
+MAX_SCENE_M = 10.0  # positions in the beam plane, from the pivot
+MAX_DISTANCE_M = 100.0  # camera to the beam plane
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     """The still camera (paper §4: Canon PowerShot A70, about 3.2 MP, 2048 x 1536).
@@ -47,12 +73,40 @@ class CameraConfig:
     def __post_init__(self) -> None:
         for name in ("width_px", "height_px"):
             v = getattr(self, name)
-            if not 16 <= v <= 20000:
-                raise ParameterError(name, f"must be between 16 and 20000, got {v!r}")
+            if not 16 <= v <= MAX_SIDE_PX:
+                raise ParameterError(
+                    name, f"must be between 16 and {MAX_SIDE_PX} (a 16k sensor), got {v!r}"
+                )
         for name in ("frame_rate_hz", "exposure_s", "focal_length_px"):
             _positive(name, getattr(self, name))
-        if self.latency_s < 0.0:
-            raise ParameterError("latency_s", f"must be >= 0, got {self.latency_s!r}")
+        pixels = self.width_px * self.height_px
+        max_rate = min(MAX_FRAME_RATE_HZ, MAX_PIXEL_RATE_PX_S / pixels)
+        if self.frame_rate_hz > max_rate:
+            raise ParameterError(
+                "frame_rate_hz",
+                f"must be at most {max_rate:.4g} frames/s for a {self.width_px} x "
+                f"{self.height_px} camera ({MAX_PIXEL_RATE_PX_S:.3g} pixels/s, at most "
+                f"{MAX_FRAME_RATE_HZ:g} frames/s), got {self.frame_rate_hz!r}",
+            )
+        if not 0.0 <= self.latency_s <= MAX_LATENCY_S:
+            raise ParameterError(
+                "latency_s",
+                f"must be finite, within 0..{MAX_LATENCY_S:g} s (trigger to timestamp), "
+                f"got {self.latency_s!r}",
+            )
+        side = max(self.width_px, self.height_px)
+        if not 0.05 * side <= self.focal_length_px <= 50.0 * side:
+            raise ParameterError(
+                "focal_length_px",
+                f"must be within 0.05..50 times the image's long side ({side} px: a fisheye "
+                f"to a long telephoto), got {self.focal_length_px!r}",
+            )
+        if not all(abs(k) <= MAX_DISTORTION for k in self.distortion):
+            raise ParameterError(
+                "distortion",
+                f"coefficients must be finite, within +/-{MAX_DISTORTION:g}, "
+                f"got {self.distortion!r}",
+            )
         if self.exposure_s * self.frame_rate_hz > 1.0:
             raise ParameterError(
                 "exposure_s",
@@ -90,10 +144,12 @@ class CameraPoseConfig:
 
     def __post_init__(self) -> None:
         _positive("distance_m", self.distance_m)
-        if len(self.target_m) != 2:
-            raise ParameterError("target_m", f"must be (x, y), got {self.target_m!r}")
+        _at_most("distance_m", self.distance_m, MAX_DISTANCE_M, "m", "camera to beam plane")
+        _finite_pair("target_m", self.target_m, MAX_SCENE_M)
         if not 0.0 <= self.tilt_rad < math.radians(80.0):
             raise ParameterError("tilt_rad", f"must be in [0, 80 deg), got {self.tilt_rad!r}")
+        for name in ("tilt_azimuth_rad", "roll_rad"):
+            _at_most(name, getattr(self, name), 2.0 * math.pi, "rad", "one turn")
 
 
 @dataclass(frozen=True)
@@ -119,5 +175,6 @@ class RegistrationConfig:
                 f"({self.plate_side_m!r}) must exceed twice square_side_m "
                 f"({self.square_side_m!r}) so the grooves show on the plate",
             )
-        if len(self.center_m) != 2:
-            raise ParameterError("center_m", f"must be (x, y), got {self.center_m!r}")
+        _at_most("plate_side_m", self.plate_side_m, 2.0, "m", "a plate on the bench")
+        _finite_pair("center_m", self.center_m, MAX_SCENE_M)
+        _at_most("angle_rad", self.angle_rad, 2.0 * math.pi, "rad", "one turn")

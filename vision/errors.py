@@ -67,6 +67,27 @@ class DecodeError(VisionError, ValueError):
         )
 
 
+class CorruptImageError(VisionError, ValueError):
+    """Image bytes whose own checks fail (a PNG chunk's CRC, a PNG cut short)."""
+
+    def __init__(self, problem: str) -> None:
+        self.problem = problem
+        super().__init__(f"a damaged image: {problem}")
+
+
+class ImageSizeError(VisionError, ValueError):
+    """Image bytes whose header claims a size beyond what beambench decodes."""
+
+    def __init__(self, width_px: int, height_px: int, max_side_px: int) -> None:
+        self.width_px = width_px
+        self.height_px = height_px
+        mb = width_px * height_px / 1e6
+        super().__init__(
+            f"the image header claims {width_px} x {height_px} px (would decode to {mb:.0f} MB); "
+            f"images of at most {max_side_px} px a side are read"
+        )
+
+
 class EncodeError(VisionError, ValueError):
     """An image the codec library refused to compress."""
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
+from pipelines.paths import refuse_inputs_among
 
 HELP = "synthetic bench end to end: capture, process, report"
 
@@ -29,10 +30,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pipelines.demo import run_demo
+    from pipelines.demo import OUTPUT_NAMES, run_demo
 
-    rig = rig_from_args(args)
     out = Path(args.out)
+    refuse_inputs_among(out, OUTPUT_NAMES, {"--rig": args.rig})
+    rig = rig_from_args(args)
     if out.exists() and not out.is_dir():
         raise BeambenchError(f"--out {out}: exists and is not a folder")
     if not args.duration > 0:

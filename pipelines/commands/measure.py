@@ -60,12 +60,18 @@ def _text(path: str, m: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from vision import Measurer, load_calibration
+    from vision.calibration import check_points_in_image
 
     try:
         cal = load_calibration(args.calibration)
     except ValueError as exc:
         raise BeambenchError(f"{args.calibration}: {exc}") from None
     images = _read_images(args.images)
+    for path, image in images:
+        try:
+            check_points_in_image(cal, image.shape[1], image.shape[0])
+        except ValueError as exc:
+            raise BeambenchError(f"{args.calibration}: {exc} ({path})") from None
     measurer = Measurer(cal, method=args.method)
     for path, image in images:
         m = measurer.measure(image).to_dict()

@@ -12,6 +12,7 @@ from pipelines.commands._args import (
     add_viewer_arguments,
 )
 from pipelines.errors import BeambenchError
+from pipelines.paths import check_writable_output, refuse_aliases, write_failed
 from sim.models.registry import MODELS
 
 HELP = "measure frames, reconstruct, simulate and compare a run; write RESULTS.nc"
@@ -52,6 +53,19 @@ def check_output_folder(path: Path, option: str) -> None:
         raise BeambenchError(f"{option} {path}: folder {path.parent} does not exist")
     if path.is_dir():
         raise BeambenchError(f"{option} {path}: is a folder")
+    check_writable_output(path, option)
+
+
+def check_readable(path: Path) -> None:
+    try:
+        with open(path, "rb"):
+            pass
+    except FileNotFoundError:
+        raise BeambenchError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise BeambenchError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if not path.is_file():
+        raise BeambenchError(f"{path}: not a file")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -60,8 +74,11 @@ def run(args: argparse.Namespace) -> int:
 
     log_path = Path(args.log)
     out = Path(args.out)
-    if not log_path.is_file():
-        raise BeambenchError(f"{log_path}: no such file")
+    check_readable(log_path)
+    refuse_aliases(
+        {"--out": out, "--rrd": args.rrd},
+        {"the log": log_path, "--rig": args.rig, "--calibration": args.calibration},
+    )
     check_output_folder(out, "--out")
     if args.rrd:
         check_output_folder(Path(args.rrd), "--rrd")
@@ -82,9 +99,15 @@ def run(args: argparse.Namespace) -> int:
         workers=args.workers,
         damping_law=args.damping_law,
     )
-    write_processed(processed, out)
+    try:
+        write_processed(processed, out)
+    except OSError as exc:
+        raise write_failed(out, exc) from None
     if args.rrd or args.spawn or args.connect:
-        stream_to_viewer(processed, log_path, args)
+        try:
+            stream_to_viewer(processed, log_path, args)
+        except (OSError, RuntimeError) as exc:  # rerun's file writer raises RuntimeError
+            raise write_failed(args.rrd or "the Rerun viewer", exc) from None
     print_summary(processed, out)
     return 0
 
@@ -106,10 +129,10 @@ def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace
         raise BeambenchError(str(exc)) from None
     try:
         stream_processed(processed, log_path, viewer, frame_reduction=args.frame_reduction)
+        viewer.close()
     except BaseException:
         viewer.abort()
         raise
-    viewer.close()
     processed.timings.viewer_s = time.perf_counter() - t0
 
 

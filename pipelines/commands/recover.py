@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from pipelines.errors import BeambenchError
+from pipelines.paths import refuse_aliases
 
 HELP = (
     "restore every flushed message of a broken log into a new file, read back and verified "
@@ -22,6 +23,7 @@ def run(args: argparse.Namespace) -> int:
     from daq.log import recover_log
 
     out = Path(args.out)
+    refuse_aliases({"--out": out}, {"the log": args.log})
     if out.exists():
         raise BeambenchError(f"{out}: already exists; choose another --out (never overwritten)")
     if not out.parent.is_dir():

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 from pipelines.commands._args import add_viewer_arguments
 from pipelines.errors import BeambenchError
+from pipelines.paths import refuse_aliases
 
 if TYPE_CHECKING:
     # rerun, xarray and mcap take seconds to import: only when replay runs, not for
@@ -140,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
     if rrd is not None:
         if rrd.suffix.lower() != ".rrd":
             raise BeambenchError(f"--rrd {rrd}: the recording file must end in .rrd")
+        refuse_aliases({"--rrd": rrd}, {"the log": log_path})
         if not rrd.parent.is_dir():
             raise BeambenchError(f"--rrd {rrd}: folder {rrd.parent} does not exist")
     try:

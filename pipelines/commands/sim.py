@@ -16,6 +16,7 @@ from pipelines.commands._args import (
     rig_from_args,
 )
 from pipelines.errors import BeambenchError
+from pipelines.paths import check_writable_output, refuse_aliases
 from pipelines.results.sim_dataset import (
     check_output_path,
     modes_dataset,
@@ -34,6 +35,20 @@ HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-bo
 SCENES = ("reciprocating", "static", "free-decay", "spin-up", "falling-body", "modes", "linkage")
 
 DEFAULT_MASS_KG = {"static": 0.149, "free-decay": 0.1}
+DEFAULT_DURATION_S = {"reciprocating": 10.0, "free-decay": 10.0, "spin-up": 30.0}
+DEFAULT_RATE_HZ = {"spin-up": 100.0}  # the bench scenes: 400 Hz
+
+# Work is bounded before it starts (the error names the estimated cost):
+MAX_DURATION_S = 1200.0  # about 1100 crank cycles at the bench's 0.92 Hz; 20 min of run
+MAX_OUTPUT_RATE_HZ = 20000.0  # 50x the DAQ's 400 Hz
+MAX_OUTPUT_SAMPLES = 2_000_000  # times x (gauges + stations) float64: ~0.5 GB of results
+RTOL_RANGE = (1e-10, 0.1)  # below 1e-10 the error is round-off and steps grow as rtol^-1/5
+MAX_OMEGA_RAD_S = 50.0  # 5x the benchmark's fastest spin-up (10 rad/s); steps grow with it
+MAX_MASS_KG = 10.0  # a tip mass 70 times the beam's 0.14 kg
+MAX_DAMPING = (1e3, 10.0)  # a0 (1/s), a1 (s): as the rig's limits
+# wall seconds per simulated second, measured on the 2-core development machine (README
+# "Speed and error"; exact FE with 8 elements, the slowest the auto model picks)
+SOLVE_S_PER_S = {"rigid": 0.001, "modal": 0.006, "auto": 0.14, "fe": 0.14}
 
 
 def _finite(text: str) -> float:
@@ -71,21 +86,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=_finite,
         metavar="S",
         default=None,
-        help="simulated time, s (reciprocating 10, free-decay 10, spin-up 30, falling-body 2)",
+        help="simulated time, s (reciprocating 10, free-decay 10, spin-up 30, falling-body 2; "
+        f"at most {MAX_DURATION_S:g} s and {MAX_OUTPUT_SAMPLES:g} output samples)",
     )
     p.add_argument(
         "--mass",
         type=_finite,
         metavar="KG",
         default=None,
-        help="static / free-decay tip mass, kg (default 0.149 / 0.1)",
+        help=f"static / free-decay tip mass, kg (default 0.149 / 0.1; at most {MAX_MASS_KG:g})",
     )
     p.add_argument(
         "--omega",
         type=_finite,
         metavar="RAD_S",
         default=4.0,
-        help="spin-up: final hub speed, rad/s (the benchmark uses 4 and 10)",
+        help="spin-up: final hub speed, rad/s (the benchmark uses 4 and 10; at most "
+        f"{MAX_OMEGA_RAD_S:g})",
     )
     p.add_argument(
         "--no-stiffening",
@@ -104,14 +121,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--rtol",
         type=_finite,
         default=None,
-        help="tolerance of the dynamic model (default: the model's own; modal 1e-6, auto 1e-4)",
+        help="tolerance of the dynamic model (default: the model's own; modal 1e-6, auto 1e-4; "
+        f"within {RTOL_RANGE[0]:g}..{RTOL_RANGE[1]:g})",
     )
     p.add_argument(
         "--output-rate",
         type=_finite,
         metavar="HZ",
         default=None,
-        help="output samples per second (400 for the bench scenes, 100 for spin-up)",
+        help="output samples per second (400 for the bench scenes, 100 for spin-up; at most "
+        f"{MAX_OUTPUT_RATE_HZ:g})",
     )
     p.add_argument(
         "--target-log-decrement",
@@ -143,6 +162,57 @@ def _check(args: argparse.Namespace) -> None:
         raise BeambenchError(f"--damping values must be non-negative, got {args.damping!r}")
     if args.n_modes is not None and not 1 <= args.n_modes <= 40:
         raise BeambenchError(f"--n-modes must be between 1 and 40, got {args.n_modes!r}")
+    _check_bounds(args)
+
+
+def _at_most(name: str, value: float | None, limit: float, unit: str) -> None:
+    if value is not None and value > limit:
+        raise BeambenchError(f"{name} must be at most {limit:g} {unit}, got {value:g}")
+
+
+def _check_bounds(args: argparse.Namespace) -> None:
+    """Refuse work beyond the limits the help states, naming its estimated cost."""
+    _at_most("--mass", args.mass, MAX_MASS_KG, "kg (a tip mass 70 times the beam's)")
+    _at_most("--omega", args.omega, MAX_OMEGA_RAD_S, "rad/s (5x the benchmark's 10 rad/s)")
+    _at_most("--output-rate", args.output_rate, MAX_OUTPUT_RATE_HZ, "Hz")
+    _at_most("--target-log-decrement", args.target_log_decrement, 10.0, "(a 1e-4 amplitude ratio)")
+    if args.damping is not None:
+        _at_most("--damping A0", args.damping[0], MAX_DAMPING[0], "1/s")
+        _at_most("--damping A1", args.damping[1], MAX_DAMPING[1], "s")
+    if args.rtol is not None and not RTOL_RANGE[0] <= args.rtol <= RTOL_RANGE[1]:
+        raise BeambenchError(
+            f"--rtol must be within {RTOL_RANGE[0]:g}..{RTOL_RANGE[1]:g}, got {args.rtol:g} "
+            "(below 1e-10 a double-precision solve gains nothing and its steps grow as "
+            "rtol^-1/5 without end)"
+        )
+    duration = args.duration if args.duration is not None else DEFAULT_DURATION_S.get(args.scene)
+    if duration is None:
+        return
+    rate = args.output_rate or DEFAULT_RATE_HZ.get(args.scene, 400.0)
+    samples = duration * rate
+    solve_s = duration * SOLVE_S_PER_S.get(args.model, SOLVE_S_PER_S["fe"])
+    cost = (
+        f"{samples:.3g} output samples at {rate:g} Hz and about {_human_s(solve_s)} of "
+        f"solving with --model {args.model}"
+    )
+    if duration > MAX_DURATION_S:
+        raise BeambenchError(
+            f"--duration {duration:g} s would take {cost}; at most {MAX_DURATION_S:g} s "
+            "(about 1100 crank cycles at 0.92 Hz) is simulated"
+        )
+    if samples > MAX_OUTPUT_SAMPLES:
+        raise BeambenchError(
+            f"--duration {duration:g} s at --output-rate {rate:g} Hz would take {cost}; "
+            f"at most {MAX_OUTPUT_SAMPLES:g} output samples are written"
+        )
+
+
+def _human_s(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
 
 
 def _kw(args: argparse.Namespace, **defaults: Any) -> dict[str, Any]:
@@ -249,6 +319,7 @@ def _print_table2(rig: Rig) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_aliases({"--out": args.out}, {"--rig": args.rig})
     rig = rig_from_args(args)
     _check(args)
     if args.out is not None:
@@ -256,6 +327,7 @@ def run(args: argparse.Namespace) -> int:
             check_output_path(args.out)
         except ValueError as exc:
             raise BeambenchError(f"--out {exc}") from None
+        check_writable_output(args.out, "--out")
     if args.scene == "linkage":
         _print_linkage(scenes.linkage(rig.linkage), args.json)
         return 0

@@ -3,23 +3,46 @@
 Frames are decoded and measured in worker processes, each building its
 ``vision.Measurer`` once (initializer), so only the encoded bytes cross process
 boundaries. Results come back in frame order.
+
+A worker that dies (killed, out of memory, its resource tracker gone) or a pool that stops
+making progress is a :class:`WorkerError` within seconds, never a wait without end: the
+main process polls the workers while it waits and kills what is left when it gives up.
 """
 
 from __future__ import annotations
 
+import collections
+import itertools
 import logging
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from pipelines.errors import BeambenchError
 from vision import Calibration, FrameMeasurement, Measurer, decode
 
 log = logging.getLogger(__name__)
+
+# How often the main process looks at its workers while it waits for a result, s.
+POLL_S = 0.5
+# No chunk of frames finished for this long while every worker lives: the pool is stuck.
+# A chunk takes ~0.05 s; a spawned worker imports numpy, scipy and OpenCV in a few
+# seconds, longer on a loaded machine, so the first results may take this long.
+STALL_TIMEOUT_S = 120.0
+CHUNK_FRAMES = 4
+
+
+class WorkerError(BeambenchError):
+    """A frame-measuring worker process died or the pool stopped making progress."""
+
 
 _measurer: Measurer | None = None
 
@@ -44,10 +67,9 @@ def _init_worker(calibration: Calibration, stations_m: tuple[float, ...], method
     _measurer = Measurer(calibration, stations_m=stations_m, method=method)
 
 
-def _measure_one(item: tuple[int, int, bytes]) -> MeasuredFrame:
-    t_ns, seq, data = item
+def _measure_chunk(items: list[tuple[int, int, bytes]]) -> list[MeasuredFrame]:
     assert _measurer is not None
-    return MeasuredFrame(t_ns, seq, _measure_bytes(_measurer, data))
+    return [MeasuredFrame(t_ns, seq, _measure_bytes(_measurer, data)) for t_ns, seq, data in items]
 
 
 def _measure_bytes(measurer: Measurer, data: bytes) -> FrameMeasurement:
@@ -76,27 +98,159 @@ def measure_frames(
     items: Iterator[tuple[int, int, bytes]] = (
         (int(f.t_ns), int(f.sequence), bytes(f.data)) for f in frames
     )
-    out: list[MeasuredFrame] = []
     if n_workers <= 1:
-        measurer = Measurer(calibration, stations_m=stations_m, method=method)
-        for t_ns, seq, data in items:
-            out.append(MeasuredFrame(t_ns, seq, _measure_bytes(measurer, data)))
-            if progress:
-                progress(1)
-        return out
+        return _measure_here(items, calibration, stations_m, method, progress)
+    chunks = _chunks(items)
+    first = next(chunks, None)
+    if first is None:
+        return []
     # Spawned, not forked: a fork copies the threads of rerun and the log reader
     # half-way through whatever they hold, and the children can hang.
-    with ProcessPoolExecutor(
-        max_workers=n_workers,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_init_worker,
-        initargs=(calibration, stations_m, method),
-    ) as pool:
-        for result in pool.map(_measure_one, items, chunksize=4):
-            out.append(result)
+    pool = None
+    try:
+        pool = ProcessPoolExecutor(
+            max_workers=n_workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_init_worker,
+            initargs=(calibration, stations_m, method),
+        )
+        head = pool.submit(_measure_chunk, first)
+    except OSError as exc:
+        # no worker could be started (e.g. a user who cannot execute the interpreter's
+        # real path, so neither the workers nor their resource tracker start): measure
+        # here, as --workers 1 does, and say so
+        if pool is not None:
+            _abandon(pool)
+        log.warning(
+            "cannot start frame-measuring worker processes (%s); measuring in this process",
+            exc,
+        )
+        rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
+        return _measure_here(rest, calibration, stations_m, method, progress)
+    out: list[MeasuredFrame] = []
+    # the chunks handed to the pool before its first result: measured here if no worker
+    # ever answers (workers that die at start, e.g. a user who cannot execute the
+    # interpreter: the pool starts but each worker's exec fails)
+    unanswered: list[list[tuple[int, int, bytes]]] = [first]
+    ok = False
+    try:
+        for chunk in _pooled(pool, head, chunks, in_flight=4 * n_workers, sent=unanswered):
+            out.extend(chunk)
+            unanswered.clear()  # answered: a later death is an error, not a fallback
             if progress:
-                progress(1)
+                progress(len(chunk))
+        ok = True
+    except WorkerError as exc:
+        if out:
+            raise
+        _abandon(pool)
+        log.warning("%s; measuring in this process instead", exc)
+        rest = itertools.chain(*unanswered, itertools.chain.from_iterable(chunks))
+        return _measure_here(rest, calibration, stations_m, method, progress)
+    finally:
+        if ok:
+            pool.shutdown(wait=True)
+        else:
+            _abandon(pool)
     return out
+
+
+def _measure_here(
+    items: Iterable[tuple[int, int, bytes]],
+    calibration: Calibration,
+    stations_m: tuple[float, ...],
+    method: str,
+    progress: Callable[[int], None] | None,
+) -> list[MeasuredFrame]:
+    measurer = Measurer(calibration, stations_m=stations_m, method=method)
+    out = []
+    for t_ns, seq, data in items:
+        out.append(MeasuredFrame(t_ns, seq, _measure_bytes(measurer, data)))
+        if progress:
+            progress(1)
+    return out
+
+
+def _chunks(items: Iterator[tuple[int, int, bytes]]) -> Iterator[list[tuple[int, int, bytes]]]:
+    while chunk := list(itertools.islice(items, CHUNK_FRAMES)):
+        yield chunk
+
+
+def _pooled(
+    pool: ProcessPoolExecutor,
+    head: Future[list[MeasuredFrame]],
+    chunks: Iterator[list[tuple[int, int, bytes]]],
+    *,
+    in_flight: int,
+    sent: list[list[tuple[int, int, bytes]]],
+) -> Iterator[list[MeasuredFrame]]:
+    """Results of ``_measure_chunk`` in order, ``head`` first, at most ``in_flight``
+    chunks queued (the frames' bytes stay bounded), each wait watched by :func:`_wait`."""
+    pending: collections.deque[Future[list[MeasuredFrame]]] = collections.deque([head])
+    try:
+        for chunk in chunks:
+            sent.append(chunk)  # the caller clears it at each result
+            pending.append(pool.submit(_measure_chunk, chunk))
+            if len(pending) >= in_flight:
+                yield _wait(pool, pending.popleft())
+        while pending:
+            yield _wait(pool, pending.popleft())
+    except (BrokenProcessPool, OSError) as exc:
+        raise WorkerError(
+            f"a frame-measuring worker process died ({exc}); measuring stopped. "
+            "Run again, or with --workers 1 to measure in the main process"
+        ) from None
+
+
+def _wait(pool: ProcessPoolExecutor, future: Future[list[MeasuredFrame]]) -> list[MeasuredFrame]:
+    started = time.monotonic()
+    while True:
+        try:
+            return future.result(timeout=POLL_S)
+        except FutureTimeout:
+            pass
+        dead = [p for p in _workers(pool) if p.exitcode is not None]
+        if dead:
+            p = dead[0]
+            raise WorkerError(
+                f"a frame-measuring worker process (pid {p.pid}) died with exit code "
+                f"{p.exitcode}; measuring stopped. Run again, or with --workers 1 to "
+                "measure in the main process"
+            )
+        if time.monotonic() - started > STALL_TIMEOUT_S:
+            raise WorkerError(
+                f"the frame-measuring workers finished nothing in {STALL_TIMEOUT_S:g} s; "
+                "measuring stopped. Run again, or with --workers 1 to measure in the main "
+                "process"
+            )
+
+
+def _workers(pool: ProcessPoolExecutor) -> list[Any]:
+    # the executor's own process table: the only handle on its workers' liveness
+    return list((getattr(pool, "_processes", None) or {}).values())
+
+
+def _abandon(pool: ProcessPoolExecutor) -> None:
+    """Stop a failed pool without waiting on workers that may never answer."""
+    workers = _workers(pool)
+    # the queue's feeder thread may be blocked writing frames to workers that are gone
+    # (the parent holds the pipe's other end, so the write never fails): without this the
+    # executor's exit handler joins it and the interpreter never exits
+    call_queue = getattr(pool, "_call_queue", None)
+    if call_queue is not None:
+        call_queue.cancel_join_thread()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in workers:
+        if p.exitcode is None:
+            p.kill()
+    for p in workers:
+        p.join(timeout=5.0)
+    # with every worker gone, close this process's end of the queue's pipe too: a feeder
+    # blocked on a full pipe then fails (EPIPE) and finishes, so the executor's exit
+    # handler, which joins it, returns and the interpreter exits
+    reader = getattr(call_queue, "_reader", None)
+    if reader is not None:
+        reader.close()
 
 
 def as_arrays(frames: list[MeasuredFrame]) -> dict[str, np.ndarray]:

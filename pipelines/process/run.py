@@ -34,6 +34,7 @@ from sim.drives import TraceDrive
 from sim.modes import mode_shapes
 from sim.result import SimResult
 from vision import Calibration, calibration_from_registration, decode, load_calibration
+from vision.calibration import check_points_in_image
 
 log = logging.getLogger(__name__)
 
@@ -99,7 +100,12 @@ def calibrate(run: Any, rig: Rig, calibration_path: Path | None) -> Calibration:
     first frame that shows it (with the intrinsics recorded in the log)."""
     if calibration_path is not None:
         try:
-            return load_calibration(calibration_path)
+            cal = load_calibration(calibration_path)
+            info = run.camera_info or {}
+            if isinstance(info.get("width"), int) and isinstance(info.get("height"), int):
+                # the log's frames are this size: the registration points must be in them
+                check_points_in_image(cal, info["width"], info["height"])
+            return cal
         except FileNotFoundError:
             raise BeambenchError(f"{calibration_path}: no such file") from None
         except ValueError as exc:

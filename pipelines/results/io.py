@@ -7,6 +7,7 @@ written as the strings ``"true"``/``"false"``, listed in ``bool_attrs``, and rea
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import os
@@ -17,7 +18,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from pipelines.atomic import atomic_path
+from pipelines.atomic import write_bytes_atomic
 from pipelines.results.schema import FORMAT_NAME, VARIABLES
 
 log = logging.getLogger(__name__)
@@ -76,10 +77,18 @@ def write_results(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
         raise FileNotFoundError(f"{out}: folder {out.parent} does not exist")
     encoded = ds.copy(deep=False)
     encoded.attrs = _encode_attrs(ds.attrs)
-    with atomic_path(out) as tmp:
-        encoded.to_netcdf(tmp, engine="h5netcdf")
+    write_netcdf_bytes(encoded, out)
     log.info("wrote results %s", out)
     return out
+
+
+def write_netcdf_bytes(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
+    """NetCDF4 (h5netcdf) built in memory, then written atomically: HDF5 writing to a full
+    disk reports through its own error stack and object destructors (and can crash the
+    interpreter at exit); a plain write reports one ``OSError``. Results are megabytes."""
+    buf = io.BytesIO()
+    ds.to_netcdf(buf, engine="h5netcdf")
+    return write_bytes_atomic(path, buf.getvalue())
 
 
 def read_results(path: str | os.PathLike[str]) -> xr.Dataset:

@@ -12,7 +12,7 @@ import numpy as np
 import xarray as xr
 
 from pipelines import __version__
-from pipelines.atomic import atomic_path
+from pipelines.results.io import write_netcdf_bytes
 from sim.result import SimResult
 
 
@@ -175,6 +175,4 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
     """Write NetCDF4 (h5netcdf) to a temporary file beside ``path`` and rename it on
     success, so a failed run never clobbers an existing file."""
     out = check_output_path(path)
-    with atomic_path(out) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
-    return out
+    return write_netcdf_bytes(ds, out)

@@ -192,9 +192,12 @@ class RunViewer:
             self.abort()
 
     def _finish(self) -> None:
-        self.recording.flush()
-        self.recording.disconnect()
+        # closed even when the flush fails (a full disk): abort() then only discards
         self._closed = True
+        try:
+            self.recording.flush()
+        finally:
+            self.recording.disconnect()
 
     def close(self) -> Path | None:
         """Flush everything; for a ``.rrd`` the file is complete afterwards.

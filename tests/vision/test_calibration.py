@@ -11,7 +11,8 @@ from vision.camera import camera_matrix
 from vision.homography import apply_homography
 
 IMG = [[100.0, 120.0], [410.0, 90.0], [450.0, 400.0], [80.0, 380.0]]
-PLANE = [[0.0, 0.0], [0.1, 0.0], [0.1, 0.1], [0.0, 0.1]]
+# seen by a camera: image y grows downwards as the plane's Y falls (not a mirror image)
+PLANE = [[0.0, 0.0], [0.1, 0.0], [0.1, -0.1], [0.0, -0.1]]
 
 
 def _write(tmp_path: Path, data: object) -> Path:

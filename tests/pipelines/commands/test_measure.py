@@ -104,3 +104,61 @@ def test_a_truncated_image_gives_one_line_and_nothing_from_opencv(files, capfd) 
     assert main(["measure", str(d / "cut.png"), "--calibration", str(d / "cal.json")]) == 2
     err = capfd.readouterr().err
     assert err.startswith("error: ") and "cut.png" in err and err.count("\n") == 1
+
+
+def _one_error_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    return err
+
+
+def test_a_mirrored_calibration_is_refused(
+    files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the case: a mirrored plane measured hub 250 deg and tip -25 mm with exit 0
+    data = json.loads(files["cal.json"].read_text())
+    data["registration"]["plane_points_m"] = [
+        [x, -y] for x, y in data["registration"]["plane_points_m"]
+    ]
+    cal = tmp_path / "mirror.json"
+    cal.write_text(json.dumps(data))
+    err = _one_error_line(["measure", str(files["frame.jpg"]), "--calibration", str(cal)], capsys)
+    assert str(cal) in err and "mirrored" in err
+
+
+def test_calibration_points_outside_the_image_are_refused(
+    files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = json.loads(files["cal.json"].read_text())
+    data["registration"]["image_points_px"] = [
+        [x + 3000.0, y] for x, y in data["registration"]["image_points_px"]
+    ]
+    cal = tmp_path / "outside.json"
+    cal.write_text(json.dumps(data))
+    err = _one_error_line(["measure", str(files["frame.jpg"]), "--calibration", str(cal)], capsys)
+    assert str(cal) in err and "outside the 2048 x 1536 image" in err
+
+
+@pytest.mark.parametrize("points", [5, None, "abc", [1, 2, 3, 4], [[1, 2, 3]] * 4, [[True, 1]] * 4])
+def test_calibration_points_of_the_wrong_shape_are_one_error_line(
+    points: object, files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = json.loads(files["cal.json"].read_text())
+    data["registration"]["image_points_px"] = points
+    cal = tmp_path / "shape.json"
+    cal.write_text(json.dumps(data))
+    err = _one_error_line(["measure", str(files["frame.jpg"]), "--calibration", str(cal)], capsys)
+    assert f"{cal}: registration.image_points_px must be" in err
+
+
+@pytest.mark.parametrize("value", ["long", [1], None, True])
+def test_calibration_beam_values_must_be_numbers(
+    value: object, files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = json.loads(files["cal.json"].read_text())
+    data["beam"]["length_m"] = value
+    cal = tmp_path / "beam.json"
+    cal.write_text(json.dumps(data))
+    err = _one_error_line(["measure", str(files["frame.jpg"]), "--calibration", str(cal)], capsys)
+    assert "beam.length_m must be a number" in err
