@@ -166,7 +166,7 @@ def open_live_view(args: argparse.Namespace, rig: Rig, camera_info: dict[str, An
 def run(args: argparse.Namespace) -> int:
     from pipelines.acquire.capture import capture_run
 
-    refuse_aliases({"--out": args.out}, {"--rig": args.rig})
+    refuse_aliases({"--out": args.out, "--rrd": args.rrd}, {"--rig": args.rig})
     rig = rig_from_args(args)
     if not math.isfinite(args.duration) or args.duration <= 0:
         raise BeambenchError(

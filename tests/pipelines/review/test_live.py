@@ -75,3 +75,14 @@ def test_a_view_that_falls_behind_drops_its_own_records_and_never_blocks() -> No
     assert offered_s < 0.5  # 200 offers while the view needs 50 ms for each it takes
     assert stats.dropped >= 150
     assert stats.sample_blocks + stats.dropped == 200
+
+
+def test_the_live_recording_never_names_the_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pipelines.cli import main
+
+    out = tmp_path / "run.mcap"
+    assert main(["capture", "--duration", "1", "--out", str(out), "--rrd", str(out)]) == 2
+    assert "name the same file" in capsys.readouterr().err
+    assert not out.exists()
