@@ -29,6 +29,7 @@ COMMANDS = (
     "info",
     "recover",
     "process",
+    "campaign",
     "replay",
     "view",
     "measure",
