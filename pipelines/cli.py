@@ -30,6 +30,7 @@ COMMANDS = (
     "recover",
     "process",
     "campaign",
+    "sweep",
     "replay",
     "view",
     "measure",
