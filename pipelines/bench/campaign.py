@@ -4,7 +4,7 @@ Four 20 s runs of the built-in synthetic bench (two of 5 s with ``--quick``) are
 captured first (not timed), then processed as ``beambench campaign --workers N --force``
 does, on a fresh embedded cluster for each N. Printed per N: the cluster's start-up, the
 campaign's wall time, runs per minute and bench seconds processed per wall second, and
-each worker's peak resident memory (``ru_maxrss`` of the worker processes: the Dask
+each worker's peak resident memory (``VmHWM`` of the worker processes: the Dask
 worker itself plus the largest task it ran).
 """
 
@@ -18,16 +18,11 @@ from pathlib import Path
 from typing import Any
 
 
-def _peak_rss_bytes() -> int:
-    import resource
-
-    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
-
-
 def run(quick: bool) -> int:
     from pipelines.campaign.cluster import open_client
     from pipelines.campaign.execute import run_campaign
     from pipelines.campaign.inputs import Options, plan_runs
+    from pipelines.campaign.task import peak_rss_bytes
     from pipelines.demo import capture_synthetic
     from pipelines.rig import load_rig
 
@@ -65,7 +60,7 @@ def run(quick: bool) -> int:
                 t1 = time.perf_counter()
                 outcome = run_campaign(specs, out, client, force=True, report=lambda s: None)
                 t2 = time.perf_counter()
-                rss: dict[str, Any] = client.run(_peak_rss_bytes)
+                rss: dict[str, Any] = client.run(peak_rss_bytes)
             wall = t2 - t1
             if outcome.failed:
                 print(f"failed runs: {outcome.failed}")

@@ -50,6 +50,7 @@ NUMBER_COLUMNS: dict[str, tuple[str, str]] = {
     "frames_total": ("1", "camera frames in the run"),
     "frames_failed": ("1", "frames that gave no measurement"),
     "process_wall_time_s": ("s", "wall time of the task on its worker"),
+    "worker_peak_rss_bytes": ("byte", "peak resident memory of the worker process so far"),
     "log_size_bytes": ("byte", "size of the log file"),
 }
 for _src, _what in (("image", "images"), ("strain", "strains"), ("sim", "simulation")):

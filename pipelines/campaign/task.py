@@ -98,10 +98,26 @@ def process_task(spec: RunSpec) -> dict[str, Any]:
         calibration_sha256=opts.calibration_sha256
         or _sha256_text(str(ds.attrs.get("calibration", ""))),
         process_wall_time_s=time.perf_counter() - t0,
+        worker_peak_rss_bytes=float(peak_rss_bytes()),
         worker=_worker_name(),
         **_run_info(ds),
     )
     return row
+
+
+def peak_rss_bytes() -> int:
+    """This process's peak resident memory: ``VmHWM`` (reset by exec, unlike
+    ``ru_maxrss``, which a process started by fork + exec inherits from its parent)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    import resource
+
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
 def _sha256_text(text: str) -> str:

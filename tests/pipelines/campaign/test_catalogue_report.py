@@ -88,3 +88,17 @@ def test_report_tabulates_every_run_and_draws_the_figure(tmp_path: Path) -> None
     png = (tmp_path / "campaign_response.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     assert np.isfinite(ds["crank_frequency_hz"].values[:2]).all()
+
+
+def test_sweep_ranges_and_lists_are_checked() -> None:
+    from pipelines.campaign.sweep import parse_list, parse_range
+
+    np.testing.assert_allclose(parse_range("0.5:2.5:5"), [0.5, 1.0, 1.5, 2.0, 2.5])
+    np.testing.assert_allclose(parse_range("0.92"), [0.92])
+    for bad in ("1:2", "a:b:3", "0:1:3", "1:2:0"):
+        with pytest.raises(BeambenchError, match="--crank-hz"):
+            parse_range(bad)
+    np.testing.assert_allclose(parse_list("0.05,0.1", "--a1"), [0.05, 0.1])
+    for bad in ("x", "-1", "0.1,0.1", ""):
+        with pytest.raises(BeambenchError, match="--a1"):
+            parse_list(bad, "--a1")
