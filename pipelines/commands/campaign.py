@@ -6,6 +6,7 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 from pipelines.commands._args import add_damping_law_argument, add_rig_argument
 from pipelines.errors import BeambenchError
@@ -34,6 +35,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="worker processes of the embedded cluster (default: one per core)",
     )
     p.add_argument("--force", action="store_true", help="redo runs that are already done")
+    p.add_argument(
+        "--sweep",
+        metavar="FILE.nc",
+        default=None,
+        help="a `beambench sweep` whose curve the report draws over the runs",
+    )
     add_rig_argument(p)
     p.add_argument("--calibration", metavar="CAL.json", default=None)
     p.add_argument("--model", choices=MODELS, default="auto")
@@ -70,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     if not os.access(out, os.W_OK):
         raise BeambenchError(f"--out {out}: folder is not writable")
     specs = plan_runs(logs, out, options)
+    sweep = _read_sweep(args.sweep) if args.sweep else None
     with open_client(args.scheduler, args.workers) as client:
         n_workers = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         where = args.scheduler or "an embedded cluster"
@@ -77,11 +85,28 @@ def run(args: argparse.Namespace) -> int:
         outcome = run_campaign(
             specs, out, client, force=args.force, report=lambda s: print(s, flush=True)
         )
+    from pipelines.campaign.catalogue import read_catalogue
+    from pipelines.campaign.report import write_campaign_report
+
+    report = write_campaign_report(read_catalogue(outcome.catalogue_path), out, sweep=sweep)
     print(
         f"{len(outcome.processed)} processed, {len(outcome.skipped)} skipped, "
-        f"{len(outcome.failed)} failed; catalogue {outcome.catalogue_path}"
+        f"{len(outcome.failed)} failed; catalogue {outcome.catalogue_path}, report {report}"
     )
     for name in outcome.failed:
         err = str(outcome.rows[name]["error"]).splitlines()[0]
         print(f"failed: {name}: {err}", file=sys.stderr)
     return EXIT_SOME_FAILED if outcome.failed else 0
+
+
+def _read_sweep(path: str) -> Any:
+    import xarray as xr
+
+    try:
+        with xr.open_dataset(path, engine="h5netcdf") as opened:
+            ds = opened.load()
+    except (OSError, ValueError) as exc:
+        raise BeambenchError(f"--sweep {path}: cannot read ({exc})") from None
+    if "tip_lateral_amplitude_m" not in ds or "crank_hz" not in ds.dims:
+        raise BeambenchError(f"--sweep {path}: not a beambench sweep file")
+    return ds

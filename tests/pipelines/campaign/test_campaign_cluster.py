@@ -167,6 +167,7 @@ def test_campaign_on_a_lab_cluster_equals_runs_processed_one_at_a_time(
     assert main(["campaign", str(log_dir), "--out", str(out), "--scheduler", cluster.address]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert sum(": ok, crank " in line for line in lines) == 3
+    assert (out / "campaign.md").read_text().count("\n| run-") == 3
     _check_against_single(out, one_at_a_time)
     # both workers took part
     rows = rows_of(read_catalogue(out / "campaign.nc"))
@@ -233,6 +234,11 @@ def test_bad_input_is_one_error_line(
     assert main(["campaign", str(empty), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "no .mcap logs" in err
+    junk = tmp_path / "junk.nc"
+    junk.write_bytes(b"not a sweep")
+    assert main(["campaign", str(log_dir), "--out", str(tmp_path / "o"), "--sweep", str(junk)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: --sweep {junk}: ") and err.count("\n") == 1
     import socket
 
     with socket.socket() as s:  # a port nobody listens on

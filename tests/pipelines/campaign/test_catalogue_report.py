@@ -88,6 +88,19 @@ def test_report_tabulates_every_run_and_draws_the_figure(tmp_path: Path) -> None
     png = (tmp_path / "campaign_response.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     assert np.isfinite(ds["crank_frequency_hz"].values[:2]).all()
+    import xarray as xr
+
+    f = np.linspace(0.7, 1.4, 4)
+    sweep = xr.Dataset(
+        {
+            "tip_lateral_amplitude_m": (("crank_hz", "a1"), 0.03 * f[:, None]),
+            "tip_lateral_phase_lag_rad": (("crank_hz", "a1"), 0.5 * f[:, None]),
+        },
+        coords={"crank_hz": f, "a1": [0.1]},
+        attrs={"sim_model": "auto:modal", "damping_law": "paper"},
+    )
+    text = write_campaign_report(ds, tmp_path, sweep=sweep).read_text()
+    assert "Curves: `beambench sweep`" in text and "auto:modal" in text
 
 
 def test_sweep_ranges_and_lists_are_checked() -> None:
