@@ -29,6 +29,8 @@ COMMANDS = (
     "info",
     "recover",
     "process",
+    "campaign",
+    "sweep",
     "replay",
     "view",
     "measure",

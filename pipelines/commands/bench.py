@@ -1,8 +1,8 @@
 """beambench bench: speed against error, one module per target.
 
-``pipelines.bench.sim``, ``pipelines.bench.vision``, ``pipelines.bench.daq`` and
-``pipelines.bench.process`` each provide ``run(quick: bool) -> int`` and print their
-table on stdout.
+``pipelines.bench.sim``, ``pipelines.bench.vision``, ``pipelines.bench.daq``,
+``pipelines.bench.process`` and ``pipelines.bench.campaign`` each provide
+``run(quick: bool) -> int`` and print their table on stdout.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import importlib
 
 HELP = "print speed against error for the simulator, vision, acquisition or processing"
 
-TARGETS = ("sim", "vision", "daq", "process")
+TARGETS = ("sim", "vision", "daq", "process", "campaign")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -27,6 +27,8 @@ def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None
         "info",
         "recover",
         "process",
+        "campaign",
+        "sweep",
         "replay",
         "view",
         "measure",

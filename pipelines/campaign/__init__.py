@@ -1,0 +1,1 @@
+"""Campaigns: many runs processed as Dask tasks, catalogued, swept and reported."""
