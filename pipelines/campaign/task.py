@@ -17,6 +17,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import dask
+
 from daq.errors import DaqError
 from pipelines import __version__
 from pipelines.campaign.catalogue import empty_row
@@ -70,7 +72,10 @@ def process_task(spec: RunSpec) -> dict[str, Any]:
     root.addHandler(collect)
     # No progress bar inside a task: a worker's stderr may be the campaign's terminal.
     try:
-        with contextlib.redirect_stderr(io.StringIO()):
+        # Inside a Dask worker xarray would write NetCDF under a distributed lock named after
+        # the file (here an in-memory buffer, which no scheduler knows): the run is one task
+        # and computes locally, so Dask's scheduler inside it is the synchronous one.
+        with contextlib.redirect_stderr(io.StringIO()), dask.config.set(scheduler="synchronous"):
             rig = load_rig(opts.rig_path) if opts.rig_path else None
             processed = process_run(
                 Path(spec.log_path),
