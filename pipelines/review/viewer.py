@@ -232,21 +232,17 @@ class RunViewer:
     def _send_scalars(
         self, entity: str, t_s: FloatArray, values: FloatArray, name: str, colour: Any
     ) -> None:
-        self._style(entity, rr.SeriesLines(names=name, colors=[colour]))
-        keep = np.isfinite(values)
-        if not keep.any():
-            return
-        self.recording.send_columns(
-            entity,
-            indexes=[_time_column(t_s[keep])],
-            columns=rr.Scalars.columns(scalars=values[keep]),
-            strict=True,
-        )
+        self._send(entity, t_s, values, rr.SeriesLines(names=name, colors=[colour]))
 
     def _send_points_series(
         self, entity: str, t_s: FloatArray, values: FloatArray, name: str, colour: Any
     ) -> None:
-        self._style(entity, rr.SeriesPoints(names=name, colors=[colour], marker_sizes=[3.0]))
+        style = rr.SeriesPoints(names=name, colors=[colour], marker_sizes=[3.0])
+        self._send(entity, t_s, values, style)
+
+    def _send(self, entity: str, t_s: FloatArray, values: FloatArray, style: Any) -> None:
+        """A time series as one column (its style logged once); NaN values are skipped."""
+        self._style(entity, style)
         keep = np.isfinite(values)
         if not keep.any():
             return
