@@ -28,7 +28,7 @@ from pipelines.process.strain_shape import StrainShape, modal_curvature_shape
 from pipelines.progress import Progress
 from pipelines.results.dataset import make_results
 from pipelines.results.io import write_results
-from pipelines.rig import Rig, rig_from_json
+from pipelines.rig import Rig, rig_from_log_record
 from sim.beam import BeamProperties
 from sim.drives import TraceDrive
 from sim.modes import mode_shapes
@@ -225,8 +225,11 @@ def process_run(
     timings = Timings()
     t0 = time.perf_counter()
     run = load_log(log_path)
-    if rig is None:
-        rig = rig_from_json(run.rig_json, source=f"{log_path} (rig record)")
+    # our JSON form, another recorder's flat entries, or no record: what is understood
+    # is used, the rest comes from ``rig`` (--rig) or the shipped default, in one line
+    rig, note = rig_from_log_record(run.rig_record, source=f"{log_path} (rig record)", given=rig)
+    if note:
+        log.warning("%s", note)
     samples = run.samples
     if samples.t_ns.size < 10:
         raise BeambenchError(f"{log_path}: the log holds only {samples.t_ns.size} DAQ samples")
