@@ -47,15 +47,45 @@ def _text(path: str, m: dict[str, Any]) -> str:
     def mm(v: object) -> str:
         return f"{float(v) * 1e3:+.3f} mm"  # type: ignore[arg-type]
 
+    def sd(key: str, scale: float, unit: str) -> str:
+        v = m.get(key)
+        return "" if v is None else f" (sd {float(v) * scale:.3f} {unit})"
+
     hub = math.degrees(float(m["hub_angle_rad"]))
     stations = ", ".join(
         f"{float(s) * 1e3:.0f} mm: {mm(v)}"
         for s, v in zip(m["stations_m"], m["lateral_at_stations_m"], strict=True)
     )
     return (
-        f"{path}: hub angle {hub:.4f} deg, tip lateral {mm(m['tip_lateral_m'])}, "
-        f"tip longitudinal {mm(m['tip_longitudinal_m'])}; lateral at {stations}"
+        f"{path}: hub angle {hub:.4f} deg{sd('hub_angle_sd_rad', math.degrees(1.0), 'deg')}, "
+        f"tip lateral {mm(m['tip_lateral_m'])}{sd('tip_lateral_sd_m', 1e3, 'mm')}, "
+        f"tip longitudinal {mm(m['tip_longitudinal_m'])}{sd('tip_longitudinal_sd_m', 1e3, 'mm')}"
+        f"; lateral at {stations}"
     )
+
+
+# Each value and the key of its standard uncertainty, which follows it in the JSON.
+_SD_OF = {
+    "hub_angle_rad": "hub_angle_sd_rad",
+    "tip_lateral_m": "tip_lateral_sd_m",
+    "tip_longitudinal_m": "tip_longitudinal_sd_m",
+}
+
+
+def _with_sds(m: dict[str, Any], longitudinal_sd_m: float) -> dict[str, Any]:
+    """``m`` with each value's standard uncertainty beside it: ``tip_longitudinal_sd_m``
+    added when vision does not state it (None when the frame gave no measurement)."""
+    if m.get("tip_longitudinal_sd_m") is None:
+        sd = longitudinal_sd_m
+        m = {**m, "tip_longitudinal_sd_m": sd if math.isfinite(sd) else None}
+    out: dict[str, Any] = {}
+    for key, value in m.items():
+        if key in _SD_OF.values():
+            continue
+        out[key] = value
+        if key in _SD_OF:
+            out[_SD_OF[key]] = m.get(_SD_OF[key])
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,8 +103,11 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise BeambenchError(f"{args.calibration}: {exc} ({path})") from None
     measurer = Measurer(cal, method=args.method)
+    from pipelines.process.frames import tip_longitudinal_sd_m
+
     for path, image in images:
-        m = measurer.measure(image).to_dict()
+        measured = measurer.measure(image)
+        m = _with_sds(measured.to_dict(), tip_longitudinal_sd_m(measured))
         if args.json:
             print(json.dumps({"image": path, **m}))
         else:

@@ -327,6 +327,9 @@ def process_run(
         hub_angle_sim_rad=sim.hub_angle_rad,
         station_m=np.asarray(stations, float),
         lateral_at_stations_image_m=cols["lateral_at_stations_m"],
+        hub_angle_image_sd_rad=cols["hub_angle_sd_rad"],
+        tip_lateral_sd_m=cols["tip_lateral_sd_m"],
+        tip_longitudinal_sd_m=cols["tip_longitudinal_sd_m"],
     )
     return Processed(results, frames, calibration, alignment, sim, shape, timings, list(run.events))
 
