@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from pipelines.commands._args import add_max_tip_uncertainty_argument, max_tip_uncertainty_m
 from pipelines.errors import BeambenchError
 
 HELP = "measure hub angle and tip deflection in still images"
@@ -20,6 +21,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--method", choices=("default", "paper"), default="default", help="measurement chain"
     )
+    add_max_tip_uncertainty_argument(p)
 
 
 def _read_images(paths: list[str]) -> list[tuple[str, Any]]:
@@ -89,9 +91,11 @@ def _with_sds(m: dict[str, Any], longitudinal_sd_m: float) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from vision import Measurer, load_calibration
+    from pipelines.process.frames import measurer_for
+    from vision import load_calibration
     from vision.calibration import check_points_in_image
 
+    limit_m = max_tip_uncertainty_m(args)
     try:
         cal = load_calibration(args.calibration)
     except ValueError as exc:
@@ -102,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
             check_points_in_image(cal, image.shape[1], image.shape[0])
         except ValueError as exc:
             raise BeambenchError(f"{args.calibration}: {exc} ({path})") from None
-    measurer = Measurer(cal, method=args.method)
+    measurer = measurer_for(cal, None, args.method, limit_m)
     from pipelines.process.frames import tip_longitudinal_sd_m
 
     for path, image in images:

@@ -55,7 +55,12 @@ class MeasuredFrame:
     measurement: FrameMeasurement
 
 
-def _init_worker(calibration: Calibration, stations_m: tuple[float, ...], method: str) -> None:
+def _init_worker(
+    calibration: Calibration,
+    stations_m: tuple[float, ...],
+    method: str,
+    max_tip_uncertainty_m: float | None = None,
+) -> None:
     global _measurer
     # One thread per worker: the workers already use every core.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -65,7 +70,23 @@ def _init_worker(calibration: Calibration, stations_m: tuple[float, ...], method
         cv2.setNumThreads(1)
     except ImportError:  # pragma: no cover - opencv is a dependency
         pass
-    _measurer = Measurer(calibration, stations_m=stations_m, method=method)
+    _measurer = measurer_for(calibration, stations_m, method, max_tip_uncertainty_m)
+
+
+def measurer_for(
+    calibration: Calibration,
+    stations_m: tuple[float, ...] | None,
+    method: str,
+    max_tip_uncertainty_m: float | None,
+) -> Measurer:
+    """A ``vision.Measurer``; ``None`` leaves vision's default stations or tip
+    uncertainty limit."""
+    kwargs: dict[str, Any] = {"method": method}
+    if stations_m is not None:
+        kwargs["stations_m"] = stations_m
+    if max_tip_uncertainty_m is not None:
+        kwargs["max_tip_uncertainty_m"] = max_tip_uncertainty_m
+    return Measurer(calibration, **kwargs)
 
 
 def _measure_chunk(items: list[tuple[int, int, bytes]]) -> list[MeasuredFrame]:
@@ -89,18 +110,22 @@ def measure_frames(
     method: str = "default",
     workers: int | None = None,
     progress: Callable[[int], None] | None = None,
+    max_tip_uncertainty_m: float | None = None,
 ) -> list[MeasuredFrame]:
-    """Measure ``frames`` (objects with ``t_ns``, ``sequence``, ``data``) in order.
+    """Measure ``frames`` (objects with ``t_ns``, ``sequence``, ``data``) in order;
+    ``max_tip_uncertainty_m`` (default: vision's) refuses frames whose stated tip lateral
+    uncertainty exceeds it.
 
     ``workers`` defaults to the number of cores; 1 measures in this process. Workers are
     spawned, so a script calling this needs the usual ``if __name__ == "__main__":`` guard.
     """
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    limit = max_tip_uncertainty_m
     items: Iterator[tuple[int, int, bytes]] = (
         (int(f.t_ns), int(f.sequence), bytes(f.data)) for f in frames
     )
     if n_workers <= 1:
-        return _measure_here(items, calibration, stations_m, method, progress)
+        return _measure_here(items, calibration, stations_m, method, progress, limit)
     chunks = _chunks(items)
     first = next(chunks, None)
     if first is None:
@@ -113,7 +138,7 @@ def measure_frames(
             max_workers=n_workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_init_worker,
-            initargs=(calibration, stations_m, method),
+            initargs=(calibration, stations_m, method, limit),
         )
         head = pool.submit(_measure_chunk, first)
     except OSError as exc:
@@ -127,7 +152,7 @@ def measure_frames(
             exc,
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress)
+        return _measure_here(rest, calibration, stations_m, method, progress, limit)
     out: list[MeasuredFrame] = []
     # the chunks handed to the pool before its first result: measured here if no worker
     # ever answers (workers that die at start, e.g. a user who cannot execute the
@@ -147,7 +172,7 @@ def measure_frames(
         _abandon(pool)
         log.warning("%s; measuring in this process instead", exc)
         rest = itertools.chain(*unanswered, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress)
+        return _measure_here(rest, calibration, stations_m, method, progress, limit)
     finally:
         if ok:
             pool.shutdown(wait=True)
@@ -162,8 +187,9 @@ def _measure_here(
     stations_m: tuple[float, ...],
     method: str,
     progress: Callable[[int], None] | None,
+    max_tip_uncertainty_m: float | None = None,
 ) -> list[MeasuredFrame]:
-    measurer = Measurer(calibration, stations_m=stations_m, method=method)
+    measurer = measurer_for(calibration, stations_m, method, max_tip_uncertainty_m)
     out = []
     for t_ns, seq, data in items:
         out.append(MeasuredFrame(t_ns, seq, _measure_bytes(measurer, data)))
