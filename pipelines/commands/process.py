@@ -159,6 +159,15 @@ def print_summary(processed: object, out: Path) -> None:
     print(f"  frames measured {n_ok}/{ds.sizes['frame_time']}")
     off = a.get("camera_to_daq_offset_s", math.nan)
     print(f"  camera-to-DAQ offset {off * 1e3:.2f} ms ({processed.alignment.reason or 'ok'})")
+    if "hub_length_measured_m" in a:
+        from pipelines.process.hub import hub_line
+        from pipelines.rig import rig_from_json
+
+        line = hub_line(
+            {k: float(v) for k, v in a.items() if k.startswith("hub_")},
+            rig_from_json(a["rig_json"]),
+        )
+        print(f"  {line}")
     print(f"  simulation {a['sim_model']} (solve {processed.sim.wall_time_s:.2f} s)")
     for key in (
         "tip_lateral_image_vs_sim_rms_m",

@@ -25,6 +25,7 @@ from pipelines.process.alignment import Alignment, estimate_offset
 from pipelines.process.failures import FailureSummary, summarise_failures
 from pipelines.process.frames import MeasuredFrame, as_arrays, measure_frames
 from pipelines.process.free_decay import find_free_decay, simulate_release
+from pipelines.process.hub import hub_attrs, measured_hub, offset_warning
 from pipelines.process.strain_shape import StrainShape, modal_curvature_shape
 from pipelines.progress import Progress
 from pipelines.results.dataset import make_results
@@ -281,6 +282,9 @@ def process_run(
             )
         cols = as_arrays(frames)
         failures = _report_failures(log_path, frames)
+        hub = measured_hub([f.measurement for f in frames], calibration)
+        if (note := offset_warning(hub, rig)) is not None:
+            log.warning("%s: %s", log_path, note)
         timings.measure_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         shape, tip_strain, decay, sim, side_timings = model_side.result()
@@ -321,6 +325,7 @@ def process_run(
         "frames_total": len(frames),
         "run_info": json.dumps(run.run_info, default=str),
         "t_zero_ns": t_zero_ns,
+        **hub_attrs(hub, rig),
         **(decay.as_attrs() if decay is not None else {}),
     }
     results = make_results(
