@@ -80,13 +80,14 @@ FLAT_RIG = {
 
 @dataclass
 class ForeignRun:
-    """The log and its truth: each frame's true mid-exposure time (DAQ run clock, s) and
-    the tip lateral deflection the renderer drew (mean over the exposure, m)."""
+    """The log and its truth: each frame's true mid-exposure time (DAQ run clock, s), the
+    tip deflections and hub angle the renderer drew (means over the exposure, m, rad)."""
 
     path: Path
     bench: SyntheticBench
     t_mid_s: np.ndarray
     tip_lateral_m: np.ndarray
+    tip_longitudinal_m: np.ndarray
     hub_angle_rad: np.ndarray
 
 
@@ -197,7 +198,7 @@ def write_foreign_log(path: Path, duration_s: float) -> ForeignRun:
     # the camera starts 23.4 ms after the DAQ; the last frame arrives within the run
     t_start = 0.0234 + np.arange(int((duration_s - 0.1) * FRAME_RATE_HZ)) / FRAME_RATE_HZ
     t_mid = t_start + 0.5 * EXPOSURE_S
-    tips, hubs = [], []
+    tips, lons, hubs = [], [], []
     with open(path, "wb") as f:
         w = Writer(f, compression=CompressionType.ZSTD, chunk_size=1 << 20)
         w.start(profile="beambench", library="benchrec 2.3 (python mcap)")
@@ -242,6 +243,7 @@ def write_foreign_log(path: Path, duration_s: float) -> ForeignRun:
                 frame_rng = np.random.default_rng([7, frame_at])
                 rendered = render_frame(spec, poses, rng=frame_rng)
                 tips.append(rendered.truth.tip_lateral_m)
+                lons.append(rendered.truth.tip_longitudinal_m)
                 hubs.append(rendered.truth.hub_angle_rad)
                 data = encode(rendered.image, "jpeg", JPEG_QUALITY)
                 w.add_message(
@@ -251,4 +253,4 @@ def write_foreign_log(path: Path, duration_s: float) -> ForeignRun:
             w.add_message(ch["/daq/samples"], t, _sample(t, angle[k], strain[k], rig), t, k)
         w.finish()
     n = len(tips)
-    return ForeignRun(path, bench, t_mid[:n], np.array(tips), np.array(hubs))
+    return ForeignRun(path, bench, t_mid[:n], np.array(tips), np.array(lons), np.array(hubs))

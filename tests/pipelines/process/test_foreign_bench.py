@@ -86,9 +86,10 @@ def test_the_foreign_log_is_processed_with_no_rig(
 @pytest.mark.xfail(
     strict=True,
     reason="issue #20 gap: the registration detected in this bench's frames biases the "
-    "tip lateral by 0.3-0.5 mm (the plate's homography extrapolated to the tip; with the "
-    "true registration the tip is within about 0.12 mm RMS), and the stated uncertainties leave "
-    "calibration out",
+    "tip lateral by 0.3-0.5 mm and the longitudinal by up to 0.25 mm (the plate's homography "
+    "extrapolated to the tip; with the true registration the lateral tip is within about "
+    "0.12 mm RMS and the longitudinal within 2 stated sd), and the stated uncertainties "
+    "leave calibration out",
 )
 def test_the_foreign_image_tip_is_within_0_3_mm_of_the_truth(
     foreign: tuple[ForeignRun, xr.Dataset, str],
@@ -97,5 +98,7 @@ def test_the_foreign_image_tip_is_within_0_3_mm_of_the_truth(
     ok = ds["frame_ok"].values.astype(bool)
     err = ds["tip_lateral"].values[ok] - run.tip_lateral_m[ok]
     assert np.sqrt(np.mean(err**2)) < 0.3e-3
-    # and never outside 3 stated standard uncertainties
+    # and never outside 3 stated standard uncertainties, laterally or along the axis
     assert np.all(np.abs(err) <= 3.0 * ds["tip_lateral_sd"].values[ok])
+    lon_err = ds["tip_longitudinal"].values[ok] - run.tip_longitudinal_m[ok]
+    assert np.all(np.abs(lon_err) <= 3.0 * ds["tip_longitudinal_sd"].values[ok])
