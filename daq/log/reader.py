@@ -594,18 +594,22 @@ class ChannelStats:
 
 def scan_log(path: str | os.PathLike[str]) -> tuple[dict[str, ChannelStats], dict[str, Any]]:
     """Log times and sequences of every message per topic, plus the file's header,
-    metadata names and size (for ``beambench info``). Every message is verified as
-    :func:`read_run` and :func:`iter_frames` do. Raises ``LogError``."""
+    metadata names and size (for ``beambench info``). Every message of beambench's topics
+    is verified as :func:`read_run` and :func:`iter_frames` do; other channels' messages
+    are counted as they are. Raises ``LogError``."""
     p = Path(path)
     f, reader, summary = _open(p)
     with f:
         per: dict[int, tuple[list[int], list[int]]] = {cid: ([], []) for cid in summary.channels}
-        for _, channel, message in _messages(p, f, reader, TOPICS, None, None, ordered=False):
+        # every channel is counted; another recorder's own channels (not beambench's
+        # topics) are counted without decoding: their schemas are theirs
+        every = sorted({c.topic for c in summary.channels.values()} | set(TOPICS))
+        for _, channel, message in _messages(p, f, reader, every, None, None, ordered=False):
             if channel.topic == TOPIC_SAMPLES:
                 _decode_sample(p, message)
             elif channel.topic == TOPIC_IMAGE:
                 _decode_frame(p, message)
-            else:
+            elif channel.topic in TOPICS:
                 _decode_other(p, channel.topic, message)
             t, s = per[channel.id]
             t.append(message.log_time)

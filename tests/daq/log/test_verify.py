@@ -77,6 +77,7 @@ def write_log(
     run: dict[str, str] | None = None,
     data_crcs: bool = True,
     no_rig: bool = False,
+    extra_channel: bool = False,
 ) -> None:
     """A log as another recorder writes it: (log time, sequence, payload) per message."""
     if samples is None:
@@ -94,6 +95,11 @@ def write_log(
             fds = build_file_descriptor_set(cls).SerializeToString()
             sid = w.register_schema(cls.DESCRIPTOR.full_name, "protobuf", fds)
             channels[topic] = w.register_channel(topic, "protobuf", sid)
+        if extra_channel:  # another recorder's own channel, with its own schema
+            sid = w.register_schema("other.Temperature", "jsonschema", b'{"type":"object"}')
+            other = w.register_channel("/diagnostics/temperature", "json", sid)
+            for k in range(3):
+                w.add_message(other, k * 10**9, b'{"c": 31.5}', k * 10**9, k)
         if not no_rig:
             w.add_metadata("rig", rig if rig is not None else {"json": json.dumps(RIG)})
         w.add_metadata("run", run if run is not None else RUN)
@@ -165,6 +171,22 @@ def test_a_flat_or_absent_rig_record_is_read_as_written(tmp_path: Path) -> None:
     run = read_run(path)
     assert run.rig_record is None and run.rig_json == ""
     assert len(run.samples) == N_SAMPLES
+
+
+def test_another_recorders_own_channel_is_counted_not_decoded(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "run.mcap"
+    write_log(path, extra_channel=True)
+    assert len(read_run(path, require_samples=True).samples) == N_SAMPLES
+    stats, info = scan_log(path)
+    assert len(stats["/diagnostics/temperature"].sequence) == 3
+    assert info["library"] == "another-recorder 0.3"
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if x.startswith("/diagnostics/temperature"))
+    assert line.split()[2] == "3"
+    assert "backends: daq not recorded, camera not recorded; acquired at an unrecorded" in out
 
 
 def _record_offsets(path: Path) -> dict[str, list[int]]:
