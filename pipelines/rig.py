@@ -252,7 +252,9 @@ def rig_from_log_record(
         field_name = _field_of(key, {f.name for f in dataclasses.fields(SECTIONS[section])})
         data[section].pop(field_name, None)
         data[section][key] = value
-    rig = _build(data, f"{source} (flat entries, the rest from {base.source})")
+    rig = _build(
+        data, f"{source} (flat entries, the rest from {base.source})", synthetic_view=False
+    )
     rig = dataclasses.replace(rig, source=source)
     read = sorted(f"{s}.{k}" for s, k in understood)
     line = (
@@ -368,7 +370,10 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
     return _build(data, source)
 
 
-def _build(data: dict[str, Any], source: str) -> Rig:
+def _build(data: dict[str, Any], source: str, *, synthetic_view: bool = True) -> Rig:
+    """The rig of ``data`` checked; ``synthetic_view``: also that the synthetic camera
+    (``camera_pose``) sees the registration plate (not asked of another recorder's
+    log, whose camera pose the rig does not know)."""
     unknown = sorted(set(data) - set(SECTIONS))
     if unknown:
         raise RigError(
@@ -393,7 +398,7 @@ def _build(data: dict[str, Any], source: str) -> Rig:
         section = _fill_missing(cls, section, defaults.get(name, {}), source, name)
         built[name] = _build_section(cls, section, source, name)
     rig = Rig(**built, source=source)
-    _cross_check(rig)
+    _cross_check(rig, synthetic_view=synthetic_view)
     return rig
 
 
@@ -539,9 +544,10 @@ def _check_registration_in_view(rig: Rig) -> None:
         )
 
 
-def _cross_check(rig: Rig) -> None:
+def _cross_check(rig: Rig, *, synthetic_view: bool = True) -> None:
     """Checks that involve more than one section."""
-    _check_registration_in_view(rig)
+    if synthetic_view:
+        _check_registration_in_view(rig)
     if rig.hub.width_m <= rig.beam.width_m:
         raise RigError(
             rig.source,

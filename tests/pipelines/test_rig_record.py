@@ -124,3 +124,16 @@ def test_a_rig_file_without_a_hub_section_takes_the_default_hints_with_a_warning
     assert rig.hub == load_rig().hub
     messages = [r.getMessage() for r in caplog.records]
     assert len(messages) == 1 and messages[0].startswith("old.toml: [hub] is missing")
+
+
+def test_a_plate_our_synthetic_camera_would_not_see_is_not_refused_in_a_log() -> None:
+    """Another bench's camera looks where it looks: the synthetic camera's view (a rig
+    file's check) is not asked of a log's record."""
+    record = {"registration_center_m": "[2.5, 1.0]"}
+    rig, note = rig_from_log_record(record, source=SOURCE)
+    assert rig.registration.center_m == (2.5, 1.0) and note is not None
+    from pipelines.rig import default_rig_text
+
+    text = default_rig_text().replace("center_m = [0.50, 0.05]", "center_m = [2.5, 1.0]", 1)
+    with pytest.raises(RigError, match="not wholly in the camera's view"):
+        parse_rig(text, source="file.toml")
