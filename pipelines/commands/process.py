@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
 
@@ -159,14 +160,10 @@ def print_summary(processed: object, out: Path) -> None:
     print(f"  frames measured {n_ok}/{ds.sizes['frame_time']}")
     off = a.get("camera_to_daq_offset_s", math.nan)
     print(f"  camera-to-DAQ offset {off * 1e3:.2f} ms ({processed.alignment.reason or 'ok'})")
-    if "hub_length_measured_m" in a:
-        from pipelines.process.hub import hub_line
-        from pipelines.rig import rig_from_json
+    from pipelines.process.hub import hub_line
 
-        line = hub_line(
-            {k: float(v) for k, v in a.items() if k.startswith("hub_")},
-            rig_from_json(a["rig_json"]),
-        )
+    line = hub_line(dict(a), float(json.loads(a["rig_json"])["beam"]["hub_offset_m"]))
+    if line is not None:
         print(f"  {line}")
     print(f"  simulation {a['sim_model']} (solve {processed.sim.wall_time_s:.2f} s)")
     for key in (

@@ -51,16 +51,18 @@ def hub_attrs(measured: dict[str, float], rig: Rig) -> dict[str, Any]:
     }
 
 
-def hub_line(measured: dict[str, float], rig: Rig) -> str | None:
-    """One line for people: the hub measured beside the rig's hints (mm)."""
-    if not measured:
+def hub_line(attrs: dict[str, Any], rig_hub_offset_m: float) -> str | None:
+    """One line for people (mm): the hub measured beside the rig's hints, from a results
+    file's attributes (:func:`hub_attrs`)."""
+    if "hub_length_measured_m" not in attrs:
         return None
     return (
-        f"hub measured {measured['hub_length_measured_m'] * 1e3:.1f} x "
-        f"{measured['hub_width_measured_m'] * 1e3:.1f} mm, clamp "
-        f"{measured['hub_offset_measured_m'] * 1e3:.2f} mm from the pivot (rig: hints "
-        f"{rig.hub.length_m * 1e3:.0f} x {rig.hub.width_m * 1e3:.0f} mm, hub_offset_m "
-        f"{rig.beam.hub_offset_m * 1e3:.2f} mm)"
+        f"hub measured {float(attrs['hub_length_measured_m']) * 1e3:.1f} x "
+        f"{float(attrs['hub_width_measured_m']) * 1e3:.1f} mm, clamp "
+        f"{float(attrs['hub_offset_measured_m']) * 1e3:.2f} mm from the pivot (rig: hints "
+        f"{float(attrs['hub_length_hint_m']) * 1e3:.0f} x "
+        f"{float(attrs['hub_width_hint_m']) * 1e3:.0f} mm, hub_offset_m "
+        f"{rig_hub_offset_m * 1e3:.2f} mm)"
     )
 
 

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from pipelines.process.hub import hub_line, measured_hub, offset_warning
+from pipelines.process.hub import hub_attrs, hub_line, measured_hub, offset_warning
 from pipelines.rig import load_rig
 from vision import Calibration, FrameMeasurement
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
@@ -49,13 +49,14 @@ def test_the_measured_hub_is_the_frames_median(calibration: Calibration) -> None
     assert hub["hub_width_measured_m"] == 0.051
     assert hub["hub_offset_measured_m"] == pytest.approx(0.0081, abs=1e-12)
     rig = load_rig()
-    line = hub_line(hub, rig)
+    line = hub_line(hub_attrs(hub, rig), rig.beam.hub_offset_m)
     assert line == (
         "hub measured 68.0 x 51.0 mm, clamp 8.10 mm from the pivot (rig: hints 68 x 51 mm, "
         "hub_offset_m 8.00 mm)"
     )
     assert offset_warning(hub, rig) is None  # 0.1 mm: within what a face is found to
     assert measured_hub([FrameMeasurement(ok=False)], calibration) == {}
+    assert hub_line(hub_attrs({}, rig), 0.008) is None
 
 
 def test_a_clamp_elsewhere_than_the_rigs_offset_is_a_warning(calibration: Calibration) -> None:
