@@ -2,10 +2,13 @@
 
 Each section maps onto a frozen dataclass owned by the package that uses it
 (``sim``: linkage, beam, damping, drive; ``daq``: gauges, potentiometer, daq;
-``vision``: camera, camera_pose, registration; ``pipelines``: synthetic). This
+``vision``: camera, camera_pose, registration; ``pipelines``: hub, synthetic). This
 module does the generic part: unknown, missing or mistyped keys, ``_deg`` spellings
 of ``_rad`` keys, and checks that cross sections. Any problem is a ``RigError``
 naming the file and the key.
+
+A log's ``rig`` record is read by :func:`rig_from_log_record`: our JSON form, another
+recorder's flat string entries (``beam_length_m = "0.835"``), or no record at all.
 """
 
 from __future__ import annotations
@@ -109,6 +112,33 @@ class SyntheticConfig:
             )
 
 
+# Limits of a hub's size (hints; each with its reason).
+MAX_HUB_LENGTH_M = 1.0  # longer than the bench's crank-rocker linkage
+MAX_HUB_WIDTH_M = 0.3  # wider than the registration plate
+
+
+@dataclass(frozen=True)
+class HubConfig:
+    """The hub: the block the beam is clamped in (the paper's is about 68 mm long and
+    51 mm wide). Hints for the image measurement only: it finds the hub in each frame
+    (its edges when long, always the beam's root) and the processing compares what it
+    found with these. The pivot-to-clamp offset is ``[beam] hub_offset_m``."""
+
+    length_m: float = 0.068
+    width_m: float = 0.051
+
+    def __post_init__(self) -> None:
+        for name, limit, why in (
+            ("length_m", MAX_HUB_LENGTH_M, "longer than the linkage"),
+            ("width_m", MAX_HUB_WIDTH_M, "wider than the registration plate"),
+        ):
+            v = getattr(self, name)
+            if not math.isfinite(v) or v <= 0.0:
+                raise ValueError(f"{name} must be a positive finite number of m, got {v!r}")
+            if v > limit:
+                raise ValueError(f"{name} must be at most {limit:g} m ({why}), got {v!r}")
+
+
 SECTIONS: dict[str, type] = {
     "linkage": LinkageConfig,
     "beam": BeamConfig,
@@ -120,8 +150,12 @@ SECTIONS: dict[str, type] = {
     "camera": CameraConfig,
     "camera_pose": CameraPoseConfig,
     "registration": RegistrationConfig,
+    "hub": HubConfig,
     "synthetic": SyntheticConfig,
 }
+# Sections a rig file written before they existed may lack: filled from the shipped
+# default with a warning naming them (hints only, nothing computed from them).
+OPTIONAL_SECTIONS = ("hub",)
 
 
 @dataclass(frozen=True)
@@ -138,6 +172,7 @@ class Rig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     camera_pose: CameraPoseConfig = field(default_factory=CameraPoseConfig)
     registration: RegistrationConfig = field(default_factory=RegistrationConfig)
+    hub: HubConfig = field(default_factory=HubConfig)
     synthetic: SyntheticConfig = field(default_factory=SyntheticConfig)
     source: str = "<defaults>"
 
@@ -179,6 +214,154 @@ def rig_from_json(text: str, source: str = "<log>") -> Rig:
     return _build(data, source)
 
 
+# Entries of a log's rig record that describe the record, not the bench.
+_RECORD_KEYS = ("json", "_json_keys")
+# At most this many keys are named in the warning about a rig record.
+_NAMED_KEYS = 8
+
+
+def rig_from_log_record(
+    record: dict[str, str] | None, *, source: str, given: Rig | None = None
+) -> tuple[Rig, str | None]:
+    """The rig of a run log and, when the record was not wholly understood, the one
+    warning line saying what was taken from where (design.md, "Logs from other
+    recorders").
+
+    - our JSON form (a ``json`` entry): that rig; ``given`` (``--rig``) replaces it;
+    - flat string entries (another recorder, e.g. ``beam_length_m = "0.835"``): each
+      key read as ``section.key``, ``section/key``, ``section_key`` or a bare key that
+      only one section has (``crank_frequency_hz``); values as JSON where they parse
+      (``"0.835"``, ``"[0.005, 0.2]"``, ``"true"``), else as strings. The keys read
+      override ``given`` (or the shipped default); the others are named in the warning.
+      A value that is understood but not possible (``beam_length_m = "-1"``) is a
+      ``RigError`` naming the source and the key, as in a rig file;
+    - no record (``None``): ``given`` or the shipped default, with a warning.
+
+    Raises ``RigError``.
+    """
+    base = given if given is not None else load_rig()
+    if record is None:
+        return base, f"{source}: the log has no rig record; using {_rig_name(base)}"
+    if "json" in record:
+        if given is not None:
+            return given, None
+        return rig_from_json(record["json"], source=source), None
+    understood, not_understood = _read_flat(record)
+    data = {name: dict(section) for name, section in base.to_dict().items()}
+    for (section, key), value in understood.items():
+        field_name = _field_of(key, {f.name for f in dataclasses.fields(SECTIONS[section])})
+        data[section].pop(field_name, None)
+        data[section][key] = value
+    rig = _build(
+        data, f"{source} (flat entries, the rest from {base.source})", synthetic_view=False
+    )
+    rig = dataclasses.replace(rig, source=source)
+    read = sorted(f"{s}.{k}" for s, k in understood)
+    line = (
+        f"{source}: the rig record is flat entries, not beambench's JSON: read "
+        f"{len(read)} ({_names(read)}), the rest from {_rig_name(base)}"
+    )
+    if not_understood:
+        line += f"; not understood: {_names(not_understood)}"
+    return rig, line
+
+
+def _rig_name(rig: Rig) -> str:
+    if rig.source == DEFAULT_SOURCE:
+        return f"the shipped default rig ({DEFAULT_SOURCE}; pass --rig RIG.toml for yours)"
+    return f"the rig of {rig.source}"
+
+
+def _names(keys: list[str]) -> str:
+    if not keys:
+        return "none"
+    shown = ", ".join(keys[:_NAMED_KEYS])
+    return shown + (f" and {len(keys) - _NAMED_KEYS} more" if len(keys) > _NAMED_KEYS else "")
+
+
+def _read_flat(record: dict[str, str]) -> tuple[dict[tuple[str, str], Any], list[str]]:
+    """``{(section, key): value}`` of the flat entries understood, and the keys not
+    understood (unknown, claimed by more than one section, such as ``width_m``, or a
+    value that is not of the key's type, such as ``"0.835 m"``)."""
+    fields = {name: {f.name for f in dataclasses.fields(cls)} for name, cls in SECTIONS.items()}
+    understood: dict[tuple[str, str], Any] = {}
+    unknown: list[str] = []
+    for raw_key, raw_value in record.items():
+        if raw_key in _RECORD_KEYS:
+            continue
+        places = _places(raw_key, fields)
+        if len(places) != 1:
+            unknown.append(raw_key + (" (ambiguous)" if places else ""))
+            continue
+        section, key = places[0]
+        hint = typing.get_type_hints(SECTIONS[section])[_field_of(key, fields[section])]
+        value = _flat_value(raw_value, hint)
+        if not _type_ok(value, hint):  # the type only: values are validated with the rig
+            unknown.append(f"{raw_key} ({raw_value[:20]!r} is not {_type_name(hint)})")
+            continue
+        understood[section, key] = value
+    return understood, sorted(unknown)
+
+
+def _type_ok(value: Any, hint: Any) -> bool:
+    if typing.get_origin(hint) is tuple:
+        (item,) = {a for a in typing.get_args(hint) if a is not Ellipsis}
+        return isinstance(value, list) and all(_type_ok(v, item) for v in value)
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        return value is None or any(
+            _type_ok(value, a) for a in typing.get_args(hint) if a is not type(None)
+        )
+    if hint is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, hint)
+
+
+def _type_name(hint: Any) -> str:
+    if typing.get_origin(hint) is tuple:
+        return "a list"
+    return {float: "a number", int: "an integer", bool: "true or false"}.get(hint, "a string")
+
+
+def _places(key: str, fields: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """Where a flat key can belong: ``(section, key)`` pairs."""
+    k = key.strip().lower()
+    for sep in (".", "/"):
+        if sep in k:
+            section, _, rest = k.partition(sep)
+            if section in fields and _field_of(rest, fields[section]) in fields[section]:
+                return [(section, rest)]
+            return []
+    places = {
+        (section, k[len(section) + 1 :])
+        for section in fields
+        if k.startswith(section + "_")
+        and _field_of(k[len(section) + 1 :], fields[section]) in fields[section]
+    }
+    places |= {(name, k) for name in fields if _field_of(k, fields[name]) in fields[name]}
+    return sorted(places)
+
+
+def _flat_value(text: str, hint: Any) -> Any:
+    """A flat entry's value for a field of type ``hint``: a string field takes the text
+    as it is (``device = "0"``); others parse as JSON (``"0.835"``, ``"true"``, a list
+    with or without its brackets); what does not parse stays a string."""
+    if hint is str or not isinstance(text, str):
+        return text
+    candidates = [text.strip()]
+    if typing.get_origin(hint) is tuple and not text.strip().startswith("["):
+        candidates.append(f"[{text}]")
+    for candidate in candidates:
+        try:
+            value = json.loads(candidate)
+        except (ValueError, RecursionError):
+            continue
+        if typing.get_origin(hint) is not tuple or isinstance(value, list):
+            return value
+    return text
+
+
 def parse_rig(text: str, source: str = "<string>") -> Rig:
     try:
         data = tomllib.loads(text)
@@ -187,25 +370,35 @@ def parse_rig(text: str, source: str = "<string>") -> Rig:
     return _build(data, source)
 
 
-def _build(data: dict[str, Any], source: str) -> Rig:
+def _build(data: dict[str, Any], source: str, *, synthetic_view: bool = True) -> Rig:
+    """The rig of ``data`` checked; ``synthetic_view``: also that the synthetic camera
+    (``camera_pose``) sees the registration plate (not asked of another recorder's
+    log, whose camera pose the rig does not know)."""
     unknown = sorted(set(data) - set(SECTIONS))
     if unknown:
         raise RigError(
             source, unknown[0], f"unknown section; expected one of {', '.join(SECTIONS)}"
         )
-    missing = [name for name in SECTIONS if name not in data]
+    missing = [name for name in SECTIONS if name not in data and name not in OPTIONAL_SECTIONS]
     if missing:
         raise RigError(source, missing[0], "section is missing")
     defaults = {} if source == DEFAULT_SOURCE else tomllib.loads(default_rig_text())
     built: dict[str, Any] = {}
     for name, cls in SECTIONS.items():
-        section = data[name]
+        if name not in data:
+            log.warning(
+                "%s: [%s] is missing; using the shipped default %s",
+                source,
+                name,
+                ", ".join(f"{k} = {v!r}" for k, v in defaults.get(name, {}).items()),
+            )
+        section = data[name] if name in data else dict(defaults.get(name, {}))
         if not isinstance(section, dict):
             raise RigError(source, name, "must be a table of key = value pairs")
         section = _fill_missing(cls, section, defaults.get(name, {}), source, name)
         built[name] = _build_section(cls, section, source, name)
     rig = Rig(**built, source=source)
-    _cross_check(rig)
+    _cross_check(rig, synthetic_view=synthetic_view)
     return rig
 
 
@@ -351,9 +544,17 @@ def _check_registration_in_view(rig: Rig) -> None:
         )
 
 
-def _cross_check(rig: Rig) -> None:
+def _cross_check(rig: Rig, *, synthetic_view: bool = True) -> None:
     """Checks that involve more than one section."""
-    _check_registration_in_view(rig)
+    if synthetic_view:
+        _check_registration_in_view(rig)
+    if rig.hub.width_m <= rig.beam.width_m:
+        raise RigError(
+            rig.source,
+            "hub.width_m",
+            f"the hub ({rig.hub.width_m!r} m) must be wider than the beam it clamps "
+            f"({rig.beam.width_m!r} m): the clamp is where the hub's shoulders end",
+        )
     if rig.gauges.positions_m[-1] >= rig.beam.length_m:
         raise RigError(
             rig.source,

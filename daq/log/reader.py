@@ -83,7 +83,11 @@ class RunLog:
         ``first_sequence`` is the first sample's sequence number.
     events : list of Event
     rig_json : str
-        The ``rig`` metadata record (``Rig.to_json()``).
+        The ``rig`` metadata record's ``json`` entry (``Rig.to_json()``); "" when the
+        record has none (another recorder's flat entries) or the log has no record.
+    rig_record : dict or None
+        The ``rig`` metadata record's entries as written (strings), None when the log has
+        no ``rig`` record: what another recorder wrote is interpreted by the rig loader.
     run_info : dict
         The ``run`` metadata record.
     camera_info : dict or None
@@ -100,6 +104,7 @@ class RunLog:
     camera_info: dict[str, Any] | None
     frame_count: int
     sample_sequences: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    rig_record: dict[str, str] | None = None
 
 
 def _open(
@@ -433,15 +438,18 @@ def read_run(
             meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
         except READ_ERRORS as exc:
             raise LogError(str(p), f"corrupt metadata ({exc})") from None
-        if "rig" not in meta or "run" not in meta:
+        if "run" not in meta:
             raise LogError(
                 str(p),
-                "log lacks the 'rig' or 'run' metadata record (not written by beambench "
+                "log lacks the 'run' metadata record (not written by beambench "
                 "capture, or cut off before its first flush)",
                 suggest_recover=False,
             )
         run_info = _metadata(p, "run", meta["run"], decode_metadata)
-        rig_json = _metadata(p, "rig", meta["rig"], decode_rig_record)
+        # another recorder may store the rig as flat entries, or not at all: the rig
+        # loader reads what it can (design.md, "Logs from other recorders")
+        rig_record = meta.get("rig")
+        rig_json = "" if rig_record is None else _metadata(p, "rig", rig_record, decode_rig_record)
         image_ids = [c.id for c in summary.channels.values() if c.topic == TOPIC_IMAGE]
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
         frame_count = sum(counts.get(i, 0) for i in image_ids)
@@ -492,6 +500,7 @@ def read_run(
         camera_info=camera_info,
         frame_count=int(frame_count),
         sample_sequences=s,
+        rig_record=rig_record,
     )
 
 
@@ -585,18 +594,22 @@ class ChannelStats:
 
 def scan_log(path: str | os.PathLike[str]) -> tuple[dict[str, ChannelStats], dict[str, Any]]:
     """Log times and sequences of every message per topic, plus the file's header,
-    metadata names and size (for ``beambench info``). Every message is verified as
-    :func:`read_run` and :func:`iter_frames` do. Raises ``LogError``."""
+    metadata names and size (for ``beambench info``). Every message of beambench's topics
+    is verified as :func:`read_run` and :func:`iter_frames` do; other channels' messages
+    are counted as they are. Raises ``LogError``."""
     p = Path(path)
     f, reader, summary = _open(p)
     with f:
         per: dict[int, tuple[list[int], list[int]]] = {cid: ([], []) for cid in summary.channels}
-        for _, channel, message in _messages(p, f, reader, TOPICS, None, None, ordered=False):
+        # every channel is counted; another recorder's own channels (not beambench's
+        # topics) are counted without decoding: their schemas are theirs
+        every = sorted({c.topic for c in summary.channels.values()} | set(TOPICS))
+        for _, channel, message in _messages(p, f, reader, every, None, None, ordered=False):
             if channel.topic == TOPIC_SAMPLES:
                 _decode_sample(p, message)
             elif channel.topic == TOPIC_IMAGE:
                 _decode_frame(p, message)
-            else:
+            elif channel.topic in TOPICS:
                 _decode_other(p, channel.topic, message)
             t, s = per[channel.id]
             t.append(message.log_time)

@@ -31,6 +31,7 @@ class Options:
     calibration_path: str | None = None
     rig_sha256: str = ""
     calibration_sha256: str = ""
+    max_tip_uncertainty_m: float | None = None
 
     def key(self) -> str:
         """What a result depends on besides the log: the options, the contents of the rig
@@ -38,6 +39,8 @@ class Options:
         d = asdict(self)
         d.pop("rig_path")
         d.pop("calibration_path")
+        if d["max_tip_uncertainty_m"] is None:  # the keys of runs made before the option
+            d.pop("max_tip_uncertainty_m")
         d["software_version"] = __version__
         return json.dumps(d, sort_keys=True)
 

@@ -54,3 +54,36 @@ def add_viewer_arguments(p: argparse.ArgumentParser, frame_reduction_default: in
         f"{frame_reduction_default}, so a run loads in seconds; 1 keeps them at full "
         "resolution as logged)",
     )
+
+
+# --max-tip-uncertainty: people give mm; at most this (a frame this uncertain measures
+# nothing: the bench's tip swings about 45 mm)
+MAX_TIP_UNCERTAINTY_LIMIT_MM = 10.0
+DEFAULT_MAX_TIP_UNCERTAINTY_MM = 0.5
+
+
+def add_max_tip_uncertainty_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--max-tip-uncertainty",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="refuse a frame whose stated tip lateral standard uncertainty exceeds this, in "
+        f"mm (default {DEFAULT_MAX_TIP_UNCERTAINTY_MM:g} mm); below it a frame is measured "
+        "with its uncertainty stated",
+    )
+
+
+def max_tip_uncertainty_m(args: argparse.Namespace) -> float | None:
+    """``--max-tip-uncertainty`` in metres (None: not given), checked."""
+    from pipelines.errors import BeambenchError
+
+    mm = args.max_tip_uncertainty
+    if mm is None:
+        return None
+    if not 0.0 < mm <= MAX_TIP_UNCERTAINTY_LIMIT_MM:
+        raise BeambenchError(
+            f"--max-tip-uncertainty must be a number of mm in (0, "
+            f"{MAX_TIP_UNCERTAINTY_LIMIT_MM:g}], got {mm}"
+        )
+    return float(mm) * 1e-3

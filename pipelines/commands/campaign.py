@@ -8,7 +8,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from pipelines.commands._args import add_damping_law_argument, add_rig_argument
+from pipelines.commands._args import (
+    add_damping_law_argument,
+    add_max_tip_uncertainty_argument,
+    add_rig_argument,
+    max_tip_uncertainty_m,
+)
 from pipelines.errors import BeambenchError
 from sim.models.registry import MODELS
 
@@ -46,6 +51,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", choices=MODELS, default="auto")
     p.add_argument("--sim-tol", type=float, default=None, metavar="REL")
     add_damping_law_argument(p)
+    add_max_tip_uncertainty_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -72,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
         calibration_path=str(Path(args.calibration).resolve()) if args.calibration else None,
         rig_sha256=sha256_file(args.rig) if args.rig else "",
         calibration_sha256=sha256_file(args.calibration) if args.calibration else "",
+        max_tip_uncertainty_m=max_tip_uncertainty_m(args),
     )
     out.mkdir(parents=True, exist_ok=True)
     if not os.access(out, os.W_OK):

@@ -17,8 +17,9 @@ def run(args: argparse.Namespace) -> int:
     s = summarize_log(args.log)
     print(f"{s.path}: {s.size_bytes / 1e6:.2f} MB, {s.chunks} chunks, {s.library}")
     print(f"run {s.run_id}  start {s.start_utc}  duration {s.duration_s:.3f} s")
-    rate = s.acquisition_rate_hz
-    print(f"backends: daq {s.backends[0]}, camera {s.backends[1]}; acquired at {rate} Hz")
+    rate = "an unrecorded rate" if s.acquisition_rate_hz is None else f"{s.acquisition_rate_hz} Hz"
+    daq, camera = (b if b is not None else "not recorded" for b in s.backends)
+    print(f"backends: daq {daq}, camera {camera}; acquired at {rate}")
     print(
         f"{'topic':<16} {'schema':<30} {'count':>8} {'rate Hz':>9} {'seq gaps':>8} "
         f"{'missing':>8} {'time gaps':>9} {'max gap s':>9}"

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from pipelines.commands._args import add_max_tip_uncertainty_argument, max_tip_uncertainty_m
 from pipelines.errors import BeambenchError
 
 HELP = "measure hub angle and tip deflection in still images"
@@ -20,6 +21,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--method", choices=("default", "paper"), default="default", help="measurement chain"
     )
+    add_max_tip_uncertainty_argument(p)
 
 
 def _read_images(paths: list[str]) -> list[tuple[str, Any]]:
@@ -47,21 +49,53 @@ def _text(path: str, m: dict[str, Any]) -> str:
     def mm(v: object) -> str:
         return f"{float(v) * 1e3:+.3f} mm"  # type: ignore[arg-type]
 
+    def sd(key: str, scale: float, unit: str) -> str:
+        v = m.get(key)
+        return "" if v is None else f" (sd {float(v) * scale:.3f} {unit})"
+
     hub = math.degrees(float(m["hub_angle_rad"]))
     stations = ", ".join(
         f"{float(s) * 1e3:.0f} mm: {mm(v)}"
         for s, v in zip(m["stations_m"], m["lateral_at_stations_m"], strict=True)
     )
     return (
-        f"{path}: hub angle {hub:.4f} deg, tip lateral {mm(m['tip_lateral_m'])}, "
-        f"tip longitudinal {mm(m['tip_longitudinal_m'])}; lateral at {stations}"
+        f"{path}: hub angle {hub:.4f} deg{sd('hub_angle_sd_rad', math.degrees(1.0), 'deg')}, "
+        f"tip lateral {mm(m['tip_lateral_m'])}{sd('tip_lateral_sd_m', 1e3, 'mm')}, "
+        f"tip longitudinal {mm(m['tip_longitudinal_m'])}{sd('tip_longitudinal_sd_m', 1e3, 'mm')}"
+        f"; lateral at {stations}"
     )
 
 
+# Each value and the key of its standard uncertainty, which follows it in the JSON.
+_SD_OF = {
+    "hub_angle_rad": "hub_angle_sd_rad",
+    "tip_lateral_m": "tip_lateral_sd_m",
+    "tip_longitudinal_m": "tip_longitudinal_sd_m",
+}
+
+
+def _with_sds(m: dict[str, Any], longitudinal_sd_m: float) -> dict[str, Any]:
+    """``m`` with each value's standard uncertainty beside it: ``tip_longitudinal_sd_m``
+    added when vision does not state it (None when the frame gave no measurement)."""
+    if m.get("tip_longitudinal_sd_m") is None:
+        sd = longitudinal_sd_m
+        m = {**m, "tip_longitudinal_sd_m": sd if math.isfinite(sd) else None}
+    out: dict[str, Any] = {}
+    for key, value in m.items():
+        if key in _SD_OF.values():
+            continue
+        out[key] = value
+        if key in _SD_OF:
+            out[_SD_OF[key]] = m.get(_SD_OF[key])
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
-    from vision import Measurer, load_calibration
+    from pipelines.process.frames import measurer_for
+    from vision import load_calibration
     from vision.calibration import check_points_in_image
 
+    limit_m = max_tip_uncertainty_m(args)
     try:
         cal = load_calibration(args.calibration)
     except ValueError as exc:
@@ -72,9 +106,12 @@ def run(args: argparse.Namespace) -> int:
             check_points_in_image(cal, image.shape[1], image.shape[0])
         except ValueError as exc:
             raise BeambenchError(f"{args.calibration}: {exc} ({path})") from None
-    measurer = Measurer(cal, method=args.method)
+    measurer = measurer_for(cal, None, args.method, limit_m)
+    from pipelines.process.frames import tip_longitudinal_sd_m
+
     for path, image in images:
-        m = measurer.measure(image).to_dict()
+        measured = measurer.measure(image)
+        m = _with_sds(measured.to_dict(), tip_longitudinal_sd_m(measured))
         if args.json:
             print(json.dumps({"image": path, **m}))
         else:

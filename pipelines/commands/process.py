@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
 
 from pipelines.commands._args import (
     add_damping_law_argument,
+    add_max_tip_uncertainty_argument,
     add_rig_argument,
     add_viewer_arguments,
+    max_tip_uncertainty_m,
 )
 from pipelines.errors import BeambenchError
 from pipelines.paths import check_writable_output, refuse_aliases, write_failed
@@ -44,6 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "resolve; 1e-4 runs the exact beam)",
     )
     add_damping_law_argument(p)
+    add_max_tip_uncertainty_argument(p)
     p.add_argument("--workers", type=int, default=None, help="processes measuring frames")
     add_viewer_arguments(p)
 
@@ -86,9 +90,10 @@ def run(args: argparse.Namespace) -> int:
         raise BeambenchError(f"--workers must be at least 1, got {args.workers}")
     if args.sim_tol is not None and not (0.0 < args.sim_tol < 0.5):
         raise BeambenchError(f"--sim-tol must be in (0, 0.5), got {args.sim_tol}")
+    limit_m = max_tip_uncertainty_m(args)
     rig = load_rig(args.rig) if args.rig else None
     cal = Path(args.calibration) if args.calibration else None
-    from pipelines.process.run import SIM_TOL
+    from pipelines.process.run import MAX_TIP_UNCERTAINTY_M, SIM_TOL
 
     processed = process_run(
         log_path,
@@ -98,11 +103,19 @@ def run(args: argparse.Namespace) -> int:
         sim_tol=SIM_TOL if args.sim_tol is None else args.sim_tol,
         workers=args.workers,
         damping_law=args.damping_law,
+        max_tip_uncertainty_m=MAX_TIP_UNCERTAINTY_M if limit_m is None else limit_m,
     )
     try:
         write_processed(processed, out)
     except OSError as exc:
         raise write_failed(out, exc) from None
+    failures = processed.failures
+    if failures.total and not failures.measured:
+        raise BeambenchError(
+            f"{log_path}: none of the {failures.total} frames was measured; "
+            f"{failures.advice()}. The DAQ-only results (strains, potentiometer, simulation) "
+            f"were written to {out}"
+        )
     if args.rrd or args.spawn or args.connect:
         try:
             stream_to_viewer(processed, log_path, args)
@@ -147,6 +160,11 @@ def print_summary(processed: object, out: Path) -> None:
     print(f"  frames measured {n_ok}/{ds.sizes['frame_time']}")
     off = a.get("camera_to_daq_offset_s", math.nan)
     print(f"  camera-to-DAQ offset {off * 1e3:.2f} ms ({processed.alignment.reason or 'ok'})")
+    from pipelines.process.hub import hub_line
+
+    line = hub_line(dict(a), float(json.loads(a["rig_json"])["beam"]["hub_offset_m"]))
+    if line is not None:
+        print(f"  {line}")
     print(f"  simulation {a['sim_model']} (solve {processed.sim.wall_time_s:.2f} s)")
     for key in (
         "tip_lateral_image_vs_sim_rms_m",

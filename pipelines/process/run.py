@@ -22,13 +22,15 @@ from daq.log import LogError, iter_frames, read_run
 from pipelines import __version__
 from pipelines.errors import BeambenchError
 from pipelines.process.alignment import Alignment, estimate_offset
+from pipelines.process.failures import FailureSummary, summarise_failures
 from pipelines.process.frames import MeasuredFrame, as_arrays, measure_frames
 from pipelines.process.free_decay import find_free_decay, simulate_release
+from pipelines.process.hub import hub_attrs, measured_hub, offset_warning
 from pipelines.process.strain_shape import StrainShape, modal_curvature_shape
 from pipelines.progress import Progress
 from pipelines.results.dataset import make_results
 from pipelines.results.io import write_results
-from pipelines.rig import Rig, rig_from_json
+from pipelines.rig import Rig, rig_from_log_record
 from sim.beam import BeamProperties
 from sim.drives import TraceDrive
 from sim.modes import mode_shapes
@@ -49,6 +51,9 @@ STRAIN_SHAPE_MODES = 3
 # (~0.01 s per simulated second; ~1 % from the exact beam at the bench's stroke).
 # ``--sim-tol 1e-4`` asks for the exact beam.
 SIM_TOL = 2e-2
+# A frame whose stated tip lateral uncertainty exceeds this is refused (issue #20: 0.5 mm,
+# ten times the bench's nominal ~0.05 mm; --max-tip-uncertainty changes it).
+MAX_TIP_UNCERTAINTY_M = 0.5e-3
 
 
 @dataclass
@@ -84,6 +89,8 @@ class Processed:
     timings: Timings = field(default_factory=Timings)
     # the log's event records, so the viewer need not read the log a second time
     events: list[Any] = field(default_factory=list)
+    # the frames that were not measured, by reason
+    failures: FailureSummary = field(default_factory=lambda: FailureSummary(0, 0, []))
 
 
 def load_log(path: Path) -> Any:
@@ -219,14 +226,23 @@ def process_run(
     sim_tol: float = SIM_TOL,
     workers: int | None = None,
     damping_law: str | None = None,
+    max_tip_uncertainty_m: float = MAX_TIP_UNCERTAINTY_M,
 ) -> Processed:
     """Process the run in ``log_path``; ``damping_law`` (``"paper"`` | ``"material"``,
-    default: the rig's ``[damping] law``) is the simulation's a1 term."""
+    default: the rig's ``[damping] law``) is the simulation's a1 term;
+    ``max_tip_uncertainty_m`` the stated tip uncertainty beyond which a frame is refused.
+
+    The frames that were not measured are counted by reason, one warning line each, and
+    a warning names the main reason and the option that would help when fewer than half
+    were measured (``Processed.failures``; none measured is the caller's error)."""
     timings = Timings()
     t0 = time.perf_counter()
     run = load_log(log_path)
-    if rig is None:
-        rig = rig_from_json(run.rig_json, source=f"{log_path} (rig record)")
+    # our JSON form, another recorder's flat entries, or no record: what is understood
+    # is used, the rest comes from ``rig`` (--rig) or the shipped default, in one line
+    rig, note = rig_from_log_record(run.rig_record, source=f"{log_path} (rig record)", given=rig)
+    if note:
+        log.warning("%s", note)
     samples = run.samples
     if samples.t_ns.size < 10:
         raise BeambenchError(f"{log_path}: the log holds only {samples.t_ns.size} DAQ samples")
@@ -262,8 +278,13 @@ def process_run(
                 stations_m=stations,
                 workers=workers,
                 progress=bar.update,
+                max_tip_uncertainty_m=max_tip_uncertainty_m,
             )
         cols = as_arrays(frames)
+        failures = _report_failures(log_path, frames)
+        hub = measured_hub([f.measurement for f in frames], calibration)
+        if (note := offset_warning(hub, rig)) is not None:
+            log.warning("%s: %s", log_path, note)
         timings.measure_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         shape, tip_strain, decay, sim, side_timings = model_side.result()
@@ -304,6 +325,7 @@ def process_run(
         "frames_total": len(frames),
         "run_info": json.dumps(run.run_info, default=str),
         "t_zero_ns": t_zero_ns,
+        **hub_attrs(hub, rig),
         **(decay.as_attrs() if decay is not None else {}),
     }
     results = make_results(
@@ -324,8 +346,39 @@ def process_run(
         hub_angle_sim_rad=sim.hub_angle_rad,
         station_m=np.asarray(stations, float),
         lateral_at_stations_image_m=cols["lateral_at_stations_m"],
+        hub_angle_image_sd_rad=cols["hub_angle_sd_rad"],
+        tip_lateral_sd_m=cols["tip_lateral_sd_m"],
+        tip_longitudinal_sd_m=cols["tip_longitudinal_sd_m"],
     )
-    return Processed(results, frames, calibration, alignment, sim, shape, timings, list(run.events))
+    results.attrs["frames_failed_by_reason"] = json.dumps({k: n for k, n, _ in failures.kinds})
+    return Processed(
+        results,
+        frames,
+        calibration,
+        alignment,
+        sim,
+        shape,
+        timings,
+        list(run.events),
+        failures,
+    )
+
+
+def _report_failures(log_path: Path, frames: list[MeasuredFrame]) -> FailureSummary:
+    failures = summarise_failures(
+        [f.measurement.ok for f in frames], [f.measurement.reason for f in frames]
+    )
+    for line in failures.lines():
+        log.warning("%s: %s", log_path, line)
+    if failures.measured and failures.few_measured():
+        log.warning(
+            "%s: only %d of %d frames measured; %s",
+            log_path,
+            failures.measured,
+            failures.total,
+            failures.advice(),
+        )
+    return failures
 
 
 def write_processed(processed: Processed, out_path: Path) -> None:

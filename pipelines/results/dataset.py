@@ -120,6 +120,9 @@ def make_results(
     hub_angle_sim_rad: ArrayLike | None = None,
     station_m: ArrayLike | None = None,
     lateral_at_stations_image_m: ArrayLike | None = None,
+    hub_angle_image_sd_rad: ArrayLike | None = None,
+    tip_lateral_sd_m: ArrayLike | None = None,
+    tip_longitudinal_sd_m: ArrayLike | None = None,
 ) -> xr.Dataset:
     """Build a results Dataset with the schema of ``shared/design.md``.
 
@@ -145,6 +148,10 @@ def make_results(
     sim_tip_longitudinal_m, hub_angle_sim_rad : optional (N,) simulated extras.
     station_m : optional (S,) station positions from the clamp [m], with
     lateral_at_stations_image_m : optional (F, S) lateral deflection at the stations [m].
+    hub_angle_image_sd_rad, tip_lateral_sd_m, tip_longitudinal_sd_m : optional (F,)
+        standard uncertainties of the image measurements [rad, m, m] (NaN where a frame
+        is not ok); each becomes ``hub_angle_image_sd``, ``tip_lateral_sd``,
+        ``tip_longitudinal_sd``.
 
     Returns
     -------
@@ -185,6 +192,17 @@ def make_results(
         data["sim_tip_longitudinal"] = _vector("sim_tip_longitudinal_m", sim_tip_longitudinal_m, n)
     if hub_angle_sim_rad is not None:
         data["hub_angle_sim"] = _vector("hub_angle_sim_rad", hub_angle_sim_rad, n)
+    for name, arg, values in (
+        ("hub_angle_image_sd", "hub_angle_image_sd_rad", hub_angle_image_sd_rad),
+        ("tip_lateral_sd", "tip_lateral_sd_m", tip_lateral_sd_m),
+        ("tip_longitudinal_sd", "tip_longitudinal_sd_m", tip_longitudinal_sd_m),
+    ):
+        if values is not None:
+            sd = _vector(arg, values, nf).copy()
+            if np.any(sd[np.isfinite(sd)] < 0):
+                raise ValueError(f"{arg} must not be negative")
+            sd[~ok] = np.nan
+            data[name] = sd
     coords: dict[str, FloatArray] = {"time": t, "frame_time": ft, "gauge": g}
     if (station_m is None) != (lateral_at_stations_image_m is None):
         raise ValueError("station_m and lateral_at_stations_image_m must be given together")

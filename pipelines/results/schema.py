@@ -41,6 +41,23 @@ VARIABLES: dict[str, tuple[tuple[str, ...], str, str]] = {
 
 
 OPTIONAL_VARIABLES: dict[str, tuple[tuple[str, ...], str, str]] = {
+    # standard uncertainty of each image measurement (design.md; ``measure --json``
+    # spells them hub_angle_sd_rad, tip_lateral_sd_m, tip_longitudinal_sd_m)
+    "hub_angle_image_sd": (
+        ("frame_time",),
+        "rad",
+        "standard uncertainty of the hub angle measured in the image",
+    ),
+    "tip_lateral_sd": (
+        ("frame_time",),
+        "m",
+        "standard uncertainty of the lateral tip deflection from images",
+    ),
+    "tip_longitudinal_sd": (
+        ("frame_time",),
+        "m",
+        "standard uncertainty of the longitudinal tip deflection from images",
+    ),
     "sim_tip_longitudinal": (("time",), "m", "simulated longitudinal tip deflection"),
     "hub_angle_sim": (("time",), "rad", "hub angle that drove the simulation"),
     "lateral_at_stations_image": (

@@ -76,6 +76,8 @@ def write_log(
     rig: dict[str, str] | None = None,
     run: dict[str, str] | None = None,
     data_crcs: bool = True,
+    no_rig: bool = False,
+    extra_channel: bool = False,
 ) -> None:
     """A log as another recorder writes it: (log time, sequence, payload) per message."""
     if samples is None:
@@ -93,7 +95,13 @@ def write_log(
             fds = build_file_descriptor_set(cls).SerializeToString()
             sid = w.register_schema(cls.DESCRIPTOR.full_name, "protobuf", fds)
             channels[topic] = w.register_channel(topic, "protobuf", sid)
-        w.add_metadata("rig", rig if rig is not None else {"json": json.dumps(RIG)})
+        if extra_channel:  # another recorder's own channel, with its own schema
+            sid = w.register_schema("other.Temperature", "jsonschema", b'{"type":"object"}')
+            other = w.register_channel("/diagnostics/temperature", "json", sid)
+            for k in range(3):
+                w.add_message(other, k * 10**9, b'{"c": 31.5}', k * 10**9, k)
+        if not no_rig:
+            w.add_metadata("rig", rig if rig is not None else {"json": json.dumps(RIG)})
         w.add_metadata("run", run if run is not None else RUN)
         for topic, messages in (
             ("/daq/samples", samples),
@@ -144,6 +152,41 @@ def test_unknown_rig_keys_are_the_rig_loaders_business(tmp_path: Path) -> None:
     path.unlink()
     write_log(path, rig={"beam.length_m": "0.61"})  # another recorder's flat strings
     assert read_run(path).rig_json == ""
+
+
+def test_a_flat_or_absent_rig_record_is_read_as_written(tmp_path: Path) -> None:
+    """Another recorder's flat entries reach the rig loader as they are; a log without a
+    rig record reads (the rig then comes from --rig or the default); no run record is
+    still refused."""
+    path = tmp_path / "run.mcap"
+    flat = {"beam_length_m": "0.61", "software": "another recorder"}
+    write_log(path, rig=flat)
+    run = read_run(path)
+    assert run.rig_record == flat and run.rig_json == ""
+    path.unlink()
+    write_log(path, rig={"json": json.dumps(RIG)})
+    assert read_run(path).rig_record == {"json": json.dumps(RIG)}
+    path.unlink()
+    write_log(path, rig=None, no_rig=True)
+    run = read_run(path)
+    assert run.rig_record is None and run.rig_json == ""
+    assert len(run.samples) == N_SAMPLES
+
+
+def test_another_recorders_own_channel_is_counted_not_decoded(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "run.mcap"
+    write_log(path, extra_channel=True)
+    assert len(read_run(path, require_samples=True).samples) == N_SAMPLES
+    stats, info = scan_log(path)
+    assert len(stats["/diagnostics/temperature"].sequence) == 3
+    assert info["library"] == "another-recorder 0.3"
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if x.startswith("/diagnostics/temperature"))
+    assert line.split()[2] == "3"
+    assert "backends: daq not recorded, camera not recorded; acquired at an unrecorded" in out
 
 
 def _record_offsets(path: Path) -> dict[str, list[int]]:

@@ -70,6 +70,22 @@ def test_json_lines_per_image(files, capsys) -> None:
     assert not black["ok"] and black["reason"] and black["tip_lateral_m"] is None
 
 
+def test_json_carries_each_standard_uncertainty_beside_its_value(files, capsys) -> None:
+    argv = ["measure", str(files["frame.jpg"]), str(files["black.png"])]
+    assert main([*argv, "--calibration", str(files["cal.json"]), "--json"]) == 0
+    good, black = (json.loads(x) for x in capsys.readouterr().out.splitlines())
+    keys = list(good)
+    for value, sd in (
+        ("hub_angle_rad", "hub_angle_sd_rad"),
+        ("tip_lateral_m", "tip_lateral_sd_m"),
+        ("tip_longitudinal_m", "tip_longitudinal_sd_m"),
+    ):
+        assert keys.index(sd) == keys.index(value) + 1
+        assert good[sd] > 0.0 and black[sd] is None
+    # plausible for a 2 DN frame: micro- to a tenth of a millimetre, not zero or metres
+    assert 1e-6 < good["tip_longitudinal_sd_m"] < 1e-4
+
+
 def test_text_output(files, capsys) -> None:
     assert main(["measure", str(files["frame.jpg"]), "--calibration", str(files["cal.json"])]) == 0
     out = capsys.readouterr().out

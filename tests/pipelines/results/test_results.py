@@ -268,3 +268,28 @@ def test_the_simulation_start_up_transient_is_left_out_of_the_comparison() -> No
     e0 = summarise_errors(ds)
     assert e0["tip_lateral_strain_vs_image_rms_m"] == e["tip_lateral_strain_vs_image_rms_m"]
     assert e0["tip_lateral_image_vs_sim_max_m"] == pytest.approx(0.05 + IMAGE_ERR_M, rel=1e-6)
+
+
+def test_each_image_measurement_has_its_standard_uncertainty_beside_it(tmp_path: Path) -> None:
+    kw = _inputs(failed=(3,))
+    nf = len(kw["frame_ok"])
+    kw["hub_angle_image_sd_rad"] = np.full(nf, 3e-5)
+    kw["tip_lateral_sd_m"] = np.full(nf, 4e-5)
+    kw["tip_longitudinal_sd_m"] = np.full(nf, 5e-5)
+    ds = make_results(**kw)
+    for name, units, value in (
+        ("hub_angle_image_sd", "rad", 3e-5),
+        ("tip_lateral_sd", "m", 4e-5),
+        ("tip_longitudinal_sd", "m", 5e-5),
+    ):
+        assert ds[name].dims == ("frame_time",) and ds[name].attrs["units"] == units
+        assert "standard uncertainty" in ds[name].attrs["long_name"]
+        assert np.isnan(ds[name].values[3])  # the failed frame states none
+        assert np.all(np.delete(ds[name].values, 3) == value)
+    write_results(ds, tmp_path / "r.nc")
+    back = read_results(tmp_path / "r.nc")
+    assert back["tip_longitudinal_sd"].attrs["units"] == "m"
+    np.testing.assert_array_equal(back["tip_lateral_sd"].values, ds["tip_lateral_sd"].values)
+    kw["tip_lateral_sd_m"] = np.full(nf, -1e-5)
+    with pytest.raises(ValueError, match="tip_lateral_sd_m must not be negative"):
+        make_results(**kw)
