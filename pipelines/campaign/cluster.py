@@ -144,6 +144,9 @@ def open_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         host="127.0.0.1",
         scheduler_port=0,
         dashboard_address=None,
+        # the scheduler's HTTP server (health, metrics) runs even without a dashboard; on
+        # Dask's default port 8787 a second campaign on the machine warned it was taken
+        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
         silence_logs=logging.ERROR,
     )
     try:
