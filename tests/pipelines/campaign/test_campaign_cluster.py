@@ -22,6 +22,7 @@ from pipelines.campaign.catalogue import read_catalogue, rows_of
 from pipelines.campaign.summary import summarise_run
 from pipelines.cli import main
 from pipelines.results.io import read_results
+from pipelines.review.rrd import rrd_entities
 from pipelines.rig import default_rig_text
 
 pytestmark = pytest.mark.slow
@@ -343,7 +344,7 @@ def test_a_scheduler_that_dies_mid_campaign_is_one_error_and_keeps_what_finished
     second = Cluster(tmp_path / "dask-2")
     try:
         args = ["campaign", str(log_dir), "--out", str(out), "--scheduler", second.address]
-        assert main(args) == 0
+        assert main([*args, "--rrd", str(out / "campaign.rrd")]) == 0
     finally:
         second.close()
     text = capsys.readouterr().out
@@ -353,3 +354,8 @@ def test_a_scheduler_that_dies_mid_campaign_is_one_error_and_keeps_what_finished
     rows = rows_of(read_catalogue(out / "campaign.nc"))
     assert sorted(rows) == sorted(CRANK_HZ)
     assert all(r["status"] == "ok" and Path(r["results_file"]).is_file() for r in rows.values())
+    # the campaign's Rerun recording: every run at its measured crank frequency
+    entities = rrd_entities(out / "campaign.rrd")
+    for name in CRANK_HZ:
+        for src in ("image", "strain", "sim"):
+            assert entities[f"/runs/{name}/amplitude/{src}"].rows == 1
