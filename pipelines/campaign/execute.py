@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import dask
+
 from pipelines import __version__
 from pipelines.campaign.catalogue import (
     CATALOGUE_NAME,
@@ -108,7 +110,12 @@ def run_campaign(
 
     def save() -> None:
         cat_attrs["updated_utc"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-        write_catalogue(to_dataset(outcome.rows.values(), cat_attrs), path)
+        # With the client current, xarray would write under a distributed lock held by the
+        # scheduler: one round trip per write, and no catalogue at all once the scheduler
+        # is gone (the very moment the finished runs must be kept). The file is written
+        # here, by this process alone.
+        with dask.config.set(scheduler="synchronous"):
+            write_catalogue(to_dataset(outcome.rows.values(), cat_attrs), path)
 
     if outcome.skipped:
         report(

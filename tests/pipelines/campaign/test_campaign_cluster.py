@@ -60,8 +60,16 @@ def log_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         cmd = [str(BIN / "beambench"), "capture", "--duration", str(DURATION_S)]
         cmd += ["--rig", str(rig), "--out", str(d / f"{name}.mcap")]
         procs.append(subprocess.Popen(cmd, env=_env(), stdout=subprocess.DEVNULL))
-    for p in procs:
-        assert p.wait(timeout=120) == 0
+    try:
+        for p in procs:
+            # a hang guard: three captures at once took 125 s on this shared 2-core
+            # machine under a load average of 17
+            assert p.wait(timeout=600) == 0
+    finally:
+        for p in procs:  # none left running to be collected (a ResourceWarning) later
+            if p.poll() is None:
+                p.kill()
+                p.wait()
     return d
 
 
