@@ -6,6 +6,8 @@ and mtime, options, rig and calibration contents, software version) and its resu
 file exists; ``force`` redoes it. A run that fails, or whose worker is lost more often
 than the scheduler allows (``distributed.scheduler.allowed-failures``; a task on a worker
 that dies is first moved to another), is recorded with its error and the others carry on.
+A scheduler lost mid-way (:class:`~pipelines.campaign.cluster.SchedulerLost`) ends the
+campaign with one error; what finished before is in the catalogue, so a rerun does the rest.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import dask
 
 from pipelines import __version__
 from pipelines.campaign.catalogue import (
@@ -106,7 +110,12 @@ def run_campaign(
 
     def save() -> None:
         cat_attrs["updated_utc"] = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-        write_catalogue(to_dataset(outcome.rows.values(), cat_attrs), path)
+        # With the client current, xarray would write under a distributed lock held by the
+        # scheduler: one round trip per write, and no catalogue at all once the scheduler
+        # is gone (the very moment the finished runs must be kept). The file is written
+        # here, by this process alone.
+        with dask.config.set(scheduler="synchronous"):
+            write_catalogue(to_dataset(outcome.rows.values(), cat_attrs), path)
 
     if outcome.skipped:
         report(
@@ -127,21 +136,25 @@ def _gather(
     save: Callable[[], None],
     report: Callable[[str], None],
 ) -> None:
-    from distributed import as_completed
+    from pipelines.campaign.cluster import SchedulerLost, completed, outcome_of
 
     futures = {
         client.submit(process_task, spec, key=f"campaign-run-{spec.name}-{uuid.uuid4().hex}"): spec
         for spec in todo
     }
-    for k, future in enumerate(as_completed(futures), start=1):
-        spec = futures[future]
-        exc = future.exception()
-        if exc is None:
-            row = future.result()
-        else:
-            row = failed_row(spec, f"{type(exc).__name__}: {exc}")
-        future.release()
-        outcome.rows[spec.name] = row
-        (outcome.processed if row["status"] == "ok" else outcome.failed).append(spec.name)
-        save()
-        report(f"[{k}/{len(todo)}] {describe(row)}")
+    try:
+        for k, future in enumerate(completed(client, futures), start=1):
+            spec = futures[future]
+            result, exc = outcome_of(client, future)
+            row = result if exc is None else failed_row(spec, f"{type(exc).__name__}: {exc}")
+            future.release()
+            outcome.rows[spec.name] = row
+            (outcome.processed if row["status"] == "ok" else outcome.failed).append(spec.name)
+            save()
+            report(f"[{k}/{len(todo)}] {describe(row)}")
+    except SchedulerLost as exc:
+        # every finished run is in the catalogue already (saved as it came in)
+        raise SchedulerLost(
+            f"{exc} after {len(outcome.processed) + len(outcome.failed)} of {len(todo)} runs; "
+            f"those are kept in {outcome.catalogue_path}, a rerun does the rest"
+        ) from None

@@ -6,6 +6,9 @@ Each point starts from rest and is simulated for ``settle_s`` plus ``periods`` c
 periods; the fits use the part after ``settle_s`` and give amplitudes and phase lags
 behind the hub angle, like the campaign catalogue's (:mod:`pipelines.campaign.summary`),
 so a sweep overlays the measured runs directly.
+
+A point that fails (a crank frequency the bench model refuses, a solver that gives up)
+has NaN values and its error text in the ``error`` variable; the other points carry on.
 """
 
 from __future__ import annotations
@@ -72,11 +75,21 @@ def parse_list(text: str, option: str) -> np.ndarray:
 
 
 def simulate_point(rig: Rig, point: SweepPoint) -> dict[str, Any]:
-    """One point: the steady crank fundamental of the hub, the tip and the strains."""
+    """One point: the steady crank fundamental of the hub, the tip and the strains, or
+    ``{"error": why}`` when the simulator refuses the point or fails on it."""
     from pipelines.blas_threads import limit_blas_threads
-    from sim import scenes
+    from sim.errors import SimError
 
     limit_blas_threads()
+    try:
+        return _simulate(rig, point)
+    except (SimError, BeambenchError) as exc:
+        return {"error": str(exc)}
+
+
+def _simulate(rig: Rig, point: SweepPoint) -> dict[str, Any]:
+    from sim import scenes
+
     linkage = dataclasses.replace(rig.linkage, crank_frequency_hz=point.crank_hz)
     duration_s = point.settle_s + point.periods / point.crank_hz
     run = scenes.reciprocating(
@@ -125,8 +138,9 @@ def run_sweep(
     sim_tol: float,
     report: Callable[[str], None] = print,
 ) -> xr.Dataset:
-    """Every (crank_hz, a1) point as one task on ``client``; the gathered Dataset."""
-    from distributed import as_completed
+    """Every (crank_hz, a1) point as one task on ``client``; the gathered Dataset (a
+    failed point: NaN values and its ``error``)."""
+    from pipelines.campaign.cluster import completed, outcome_of
 
     points = {
         (i, j): SweepPoint(float(f), float(a1), rig.damping.a0_per_s, damping_law, model, sim_tol)
@@ -143,6 +157,7 @@ def run_sweep(
         "strain_phase_lag_rad": np.full((*shape, n_g), math.nan),
         "wall_time_s": np.full(shape, math.nan),
     }
+    errors = np.full(shape, "", dtype=object)
     models: set[str] = set()
     tag = uuid.uuid4().hex
     with client.as_current():
@@ -150,25 +165,47 @@ def run_sweep(
             client.submit(simulate_point, rig, p, key=f"sweep-{i}-{j}-{tag}"): (i, j)
             for (i, j), p in points.items()
         }
-        for k, future in enumerate(as_completed(futures), start=1):
+        for k, future in enumerate(completed(client, futures), start=1):
             i, j = futures[future]
-            exc = future.exception()
             p = points[(i, j)]
+            where = f"[{k}/{len(points)}] crank {p.crank_hz:.4g} Hz, a1 {p.a1_s:.4g} s"
+            r, exc = outcome_of(client, future)
+            future.release()
             if exc is not None:
-                raise BeambenchError(
-                    f"sweep point crank {p.crank_hz:g} Hz, a1 {p.a1_s:g} s failed: "
-                    f"{type(exc).__name__}: {exc}"
-                )
-            r = future.result()
+                errors[i, j] = f"{type(exc).__name__}: {exc}"
+            elif "error" in r:
+                errors[i, j] = str(r["error"])
+            if errors[i, j]:
+                report(f"{where}: FAILED: {errors[i, j].splitlines()[0]}")
+                continue
             for name, arr in arrays.items():
                 arr[i, j] = r[name]
             models.add(str(r["model"]))
             report(
-                f"[{k}/{len(points)}] crank {p.crank_hz:.4g} Hz, a1 {p.a1_s:.4g} s: tip "
-                f"{r['tip_lateral_amplitude_m'] * 1e3:.3f} mm, lag "
+                f"{where}: tip {r['tip_lateral_amplitude_m'] * 1e3:.3f} mm, lag "
                 f"{math.degrees(r['tip_lateral_phase_lag_rad']):.2f} deg ({r['model']})"
             )
-    return _dataset(rig, crank_hz, a1_s, arrays, models, damping_law, sim_tol)
+    ds = _dataset(rig, crank_hz, a1_s, arrays, models, damping_law, sim_tol)
+    ds["error"] = (
+        ("crank_hz", "a1"),
+        errors,
+        {"long_name": "why the point failed (empty when it did not; its values are NaN)"},
+    )
+    ds.attrs["points_failed"] = int(np.count_nonzero(errors != ""))
+    return ds
+
+
+def failed_points(ds: xr.Dataset) -> list[str]:
+    """One line per failed point of a sweep Dataset: where and why."""
+    if "error" not in ds:
+        return []
+    lines = []
+    for i, f in enumerate(ds["crank_hz"].values):
+        for j, a1 in enumerate(ds["a1"].values):
+            err = str(ds["error"].values[i, j])
+            if err:
+                lines.append(f"crank {f:.4g} Hz, a1 {a1:.4g} s: {err.splitlines()[0]}")
+    return lines
 
 
 _UNITS = {

@@ -46,6 +46,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="a `beambench sweep` whose curve the report draws over the runs",
     )
+    p.add_argument(
+        "--rrd",
+        metavar="FILE.rrd",
+        default=None,
+        help="also record the campaign for Rerun (`beambench view FILE.rrd`): one entity per "
+        "run and the frequency response, measured against simulated, the --sweep's curve",
+    )
     add_rig_argument(p)
     p.add_argument("--calibration", metavar="CAL.json", default=None)
     p.add_argument("--model", choices=MODELS, default="auto")
@@ -61,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from pipelines.rig import load_rig
 
     logs = find_logs(args.logs)
+    rrd = _check_rrd(args.rrd, logs, args.sweep) if args.rrd else None
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise BeambenchError(f"--out {out}: exists and is not a folder")
@@ -95,7 +103,12 @@ def run(args: argparse.Namespace) -> int:
     from pipelines.campaign.catalogue import read_catalogue
     from pipelines.campaign.report import write_campaign_report
 
-    report = write_campaign_report(read_catalogue(outcome.catalogue_path), out, sweep=sweep)
+    catalogue = read_catalogue(outcome.catalogue_path)
+    report = write_campaign_report(catalogue, out, sweep=sweep)
+    if rrd is not None:
+        from pipelines.review.campaign_view import write_campaign_rrd
+
+        print(f"recording {write_campaign_rrd(catalogue, rrd, sweep=sweep)}")
     print(
         f"{len(outcome.processed)} processed, {len(outcome.skipped)} skipped, "
         f"{len(outcome.failed)} failed; catalogue {outcome.catalogue_path}, report {report}"
@@ -104,6 +117,20 @@ def run(args: argparse.Namespace) -> int:
         err = str(outcome.rows[name]["error"]).splitlines()[0]
         print(f"failed: {name}: {err}", file=sys.stderr)
     return EXIT_SOME_FAILED if outcome.failed else 0
+
+
+def _check_rrd(path: str, logs: list[Path], sweep: str | None) -> Path:
+    from pipelines.paths import refuse_aliases
+
+    rrd = Path(path)
+    if rrd.suffix.lower() != ".rrd":
+        raise BeambenchError(f"--rrd {rrd}: the recording file must end in .rrd")
+    if not rrd.parent.is_dir():
+        raise BeambenchError(f"--rrd {rrd}: folder {rrd.parent} does not exist")
+    inputs: dict[str, str | Path | None] = {f"log {p.name}": p for p in logs}
+    inputs["--sweep"] = sweep
+    refuse_aliases({"--rrd": rrd}, inputs)
+    return rrd
 
 
 def _read_sweep(path: str) -> Any:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from pipelines.commands._args import (
@@ -15,6 +16,9 @@ from pipelines.errors import BeambenchError
 from sim.models.registry import MODELS
 
 HELP = "simulate the reciprocating bench over crank frequencies (and a1) on a Dask cluster"
+
+# as campaign: some points failed (their error is in the file's `error` variable)
+EXIT_SOME_FAILED = 1
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -42,7 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from pipelines.campaign.cluster import open_client
-    from pipelines.campaign.sweep import parse_list, parse_range, run_sweep
+    from pipelines.campaign.sweep import failed_points, parse_list, parse_range, run_sweep
     from pipelines.results.sim_dataset import check_output_path, write_dataset
 
     rig = rig_from_args(args)
@@ -66,5 +70,8 @@ def run(args: argparse.Namespace) -> int:
             report=lambda s: print(s, flush=True),
         )
     write_dataset(ds, Path(out))
-    print(f"wrote {out} ({ds.sizes['crank_hz']} x {ds.sizes['a1']} points)")
-    return 0
+    failed = failed_points(ds)
+    print(f"wrote {out} ({ds.sizes['crank_hz']} x {ds.sizes['a1']} points, {len(failed)} failed)")
+    for line in failed:
+        print(f"failed: {line}", file=sys.stderr)
+    return EXIT_SOME_FAILED if failed else 0

@@ -130,6 +130,16 @@ def measure_frames(
     first = next(chunks, None)
     if first is None:
         return []
+    if (why := _cannot_spawn()) is not None:
+        # Checked before any pool exists: a pool whose workers and resource tracker die
+        # at exec leaves semaphores whose finalizers write to the dead tracker's pipe at
+        # exit ("Exception ignored ... BrokenPipeError" after the run's own warning).
+        log.warning(
+            "cannot start frame-measuring worker processes (%s); measuring in this process",
+            why,
+        )
+        rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
+        return _measure_here(rest, calibration, stations_m, method, progress)
     # Spawned, not forked: a fork copies the threads of rerun and the log reader
     # half-way through whatever they hold, and the children can hang.
     pool = None
@@ -179,6 +189,18 @@ def measure_frames(
         else:
             _abandon(pool)
     return out
+
+
+def _cannot_spawn() -> str | None:
+    """Why this user cannot start the interpreter a spawned worker runs, or None. (A
+    user other than the interpreter's owner may lack search permission on its real
+    path, e.g. a Python under /root, mode 0700, reached through a readable symlink.)"""
+    from multiprocessing import spawn
+
+    exe = os.fsdecode(spawn.get_executable() or "")
+    if not os.access(exe, os.X_OK):
+        return f"this user cannot execute {exe}"
+    return None
 
 
 def _measure_here(

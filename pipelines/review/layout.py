@@ -12,6 +12,11 @@ where):
   the rocker angle and the measured strains, no empty panel.
 - ``live``: a capture as it is recorded (``beambench capture --spawn``): the raw layout and
   the tip deflection measured on the frames shown.
+- ``campaign``: a campaign's frequency response (``beambench campaign --rrd``): tip
+  amplitude (mm) and phase lag (deg) of the crank fundamental against the crank frequency,
+  each run's image, strain and simulation values with their 2-sd bounds and a sweep's
+  curves over them, beside the campaign's table and the selected run's card
+  (:func:`build_campaign_blueprint`; entities in ``pipelines.review.campaign_view``).
 
 Series are shown in degrees, millimetres and microstrain; results files keep SI.
 """
@@ -20,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import rerun as rr
 import rerun.blueprint as rrb
 
 N_GAUGES_IN_LAYOUT = 4  # the bench has four gauges; the blueprint shows one panel each
@@ -136,5 +142,50 @@ def build_blueprint(
             rrb.Vertical(tip, fig11, row_shares=[4, 3]),
             column_shares=[2, 2, 1.5],
         ),
+        collapse_panels=True,
+    )
+
+
+# The campaign recording's x axis: Rerun plots series against a timeline, so the crank
+# frequency is one, a sequence in millihertz (integers, shown as e.g. 1450 for 1.45 Hz).
+CAMPAIGN_TIMELINE = "crank_frequency_mHz"
+CAMPAIGN_SOURCES = ("image", "strain", "sim")
+COLOUR_BY_SOURCE = {"image": COLOUR_MEASURED, "strain": COLOUR_STRAIN, "sim": COLOUR_SIM}
+
+
+def run_entity(run: str) -> str:
+    """``/runs/<run>``, the run's name escaped as one path part."""
+    return f"/runs/{rr.escape_entity_path_part(run)}"
+
+
+def campaign_entity(run: str, quantity: str, source: str) -> str:
+    """``/runs/<run>/<quantity>/<source>``."""
+    return f"{run_entity(run)}/{quantity}/{source}"
+
+
+def build_campaign_blueprint(runs: Sequence[str], with_sweep: bool) -> rrb.Blueprint:
+    """The layout of a campaign recording of ``runs`` (names), a sweep's curves if given."""
+
+    def response(quantity: str, title: str) -> rrb.TimeSeriesView:
+        contents = [f"{run_entity(r)}/{quantity}/**" for r in runs]
+        if with_sweep:
+            contents.append(f"/sweep/{quantity}/**")
+        return rrb.TimeSeriesView(name=title, origin="/", contents=contents)
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                response("amplitude", "tip amplitude (mm) vs crank frequency (mHz)"),
+                response("phase_lag", "tip phase lag behind rocker (deg) vs crank frequency (mHz)"),
+                row_shares=[1, 1],
+            ),
+            rrb.Vertical(
+                rrb.TextDocumentView(name="campaign", origin="/summary"),
+                rrb.Tabs(*(rrb.TextDocumentView(name=r, origin=run_entity(r)) for r in runs)),
+                row_shares=[3, 2],
+            ),
+            column_shares=[3, 2],
+        ),
+        rrb.TimePanel(timeline=CAMPAIGN_TIMELINE),
         collapse_panels=True,
     )

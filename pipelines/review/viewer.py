@@ -46,6 +46,7 @@ import xarray as xr
 from numpy.typing import ArrayLike, NDArray
 
 from pipelines.atomic import discard, temp_path_beside
+from pipelines.paths import write_failed
 from pipelines.review.display import fig11_axes, run_view
 from pipelines.review.layout import (
     COLOUR_AXES,
@@ -209,7 +210,13 @@ class RunViewer:
         """
         if self._closed:
             return self.rrd_path
-        self._finish()
+        try:
+            self._finish()
+        except RuntimeError as exc:  # Rerun's file writer stopped (e.g. a full disk)
+            reason = _sink_failure(exc, self._tmp_path)
+            if self._tmp_path is not None:
+                discard(self._tmp_path)
+            raise write_failed(self.rrd_path or "the Rerun viewer", reason) from None
         if self._tmp_path is not None and self.rrd_path is not None:
             os.replace(self._tmp_path, self.rrd_path)
             log.info("wrote Rerun recording %s", self.rrd_path)
@@ -707,3 +714,23 @@ __all__ = [
     "open_viewer",
     "rrd_entities",
 ]
+
+
+# Free space under which a file sink that stopped is taken to have met a full disk.
+FULL_DISK_BYTES = 1 << 20
+
+
+def _sink_failure(exc: RuntimeError, tmp_path: Path | None) -> BaseException:
+    """Why Rerun's file writer stopped. Its error says only that the writer thread shut
+    down (the cause went to Rerun's own log, which is off: pipelines.review sets
+    ``RUST_LOG``); a disk with (almost) nothing left says the rest."""
+    import errno
+
+    if tmp_path is not None:
+        try:
+            st = os.statvfs(tmp_path.parent)
+        except OSError:
+            return exc
+        if st.f_bavail * st.f_frsize < FULL_DISK_BYTES:
+            return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp_path))
+    return exc

@@ -162,6 +162,10 @@ def test_process_as_a_user_who_is_not_root(request: pytest.FixtureRequest) -> No
     # each, as it should; only the frame workers' warnings are checked here)
     warnings = [x for x in proc.stderr.splitlines() if x.startswith("WARNING pipelines.process")]
     assert all("measuring in this process" in x for x in warnings)
+    # and nothing else: no "Exception ignored ... BrokenPipeError" from a dead resource
+    # tracker's pipe, no multiprocessing UserWarning, at most the one fallback warning
+    others = [x for x in proc.stderr.splitlines() if not x.startswith("WARNING pipelines.rig")]
+    assert others == warnings and len(warnings) <= 1, proc.stderr
 
 
 KILL_AND_EXIT = """
