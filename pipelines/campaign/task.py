@@ -85,6 +85,7 @@ def process_task(spec: RunSpec) -> dict[str, Any]:
                 sim_tol=SIM_TOL if opts.sim_tol is None else opts.sim_tol,
                 workers=1,
                 damping_law=opts.damping_law,
+                fit_damping=opts.fit_damping,
             )
             write_processed(processed, Path(spec.results_path))
     except KNOWN_ERRORS as exc:
