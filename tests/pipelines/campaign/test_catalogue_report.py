@@ -61,6 +61,8 @@ def test_a_run_is_done_only_with_the_same_inputs_and_its_results(tmp_path: Path)
     assert is_done(spec, row)
     (other,) = plan_runs([log], tmp_path, Options(damping_law="material"))
     assert not is_done(other, row)
+    (fitted,) = plan_runs([log], tmp_path, Options(fit_damping=True))
+    assert not is_done(fitted, row)  # a run processed without the fit is redone with it
     log.write_bytes(b"y" * 11)
     (changed,) = plan_runs([log], tmp_path, Options())
     assert not is_done(changed, row)
