@@ -51,8 +51,16 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, stats
 
-from pipelines.errors import BeambenchError
-from pipelines.process.run_harmonics import cycle_windows, harmonics_per_cycle
+from pipelines.errors import DampingFitError
+from pipelines.process.harmonic_fit import (
+    Problem,
+    cycle_projection_se,
+    jacobian,
+    measure,
+    sim_features,
+    with_weights,
+)
+from pipelines.process.run_harmonics import cycle_windows
 from pipelines.rig import Rig
 from sim.beam import BeamProperties
 from sim.drives import TraceDrive
@@ -69,13 +77,6 @@ FIT_MODES = 4
 # the modal integrator's rtol in the loop: its error (~0.35 rtol) is far below the
 # harmonics' noise (~1e-3 of the fundamental per cycle) and the finite-difference steps
 FIT_RTOL = 1e-6
-# Harmonics of the crank looked for: the gauges' 400 Hz stream resolves many; the image
-# tip at 15 frames a second has ~16 frames a cycle, so at most 5 harmonics (11 parameters).
-MAX_HARMONIC_STRAIN = 8
-MAX_HARMONIC_IMAGE = 5
-# A harmonic is used when its mean over the cycles stands this many standard errors clear
-# of zero.
-RESOLVED_SE = 5.0
 # Whole crank cycles after the start-up transient a fit needs (and the scatter of at least
 # this many gives the interval).
 MIN_CYCLES = 4
@@ -96,10 +97,6 @@ EXACT_TOL = 1e-3
 EXACT_CYCLES = 3
 A_MIN = 1e-4  # search bounds of a0 [1/s] and a1 [s]
 A1_MAX_S = 10.0
-
-
-class DampingFitError(BeambenchError):
-    """The run cannot determine the damping (a hub standing still, too short, no strains)."""
 
 
 @dataclass(frozen=True)
@@ -229,148 +226,6 @@ def check_fit_possible(
     return windows
 
 
-@dataclass(frozen=True)
-class _Measured:
-    """The measured side, cut into cycles, and the harmonics used."""
-
-    windows: FloatArray
-    per_cycle: ComplexArray  # (C, F)
-    keep: list[tuple[int, int]]  # (signal, harmonic index) of each used feature
-    names: list[str]
-    se: FloatArray  # (F,) weights' standard errors
-
-
-def _signal_harmonics(
-    t_s: FloatArray,
-    strain: FloatArray,
-    frame_t_s: FloatArray | None,
-    tip_m: FloatArray | None,
-    windows: FloatArray,
-) -> list[ComplexArray]:
-    """Per signal (gauges, then the image tip if any) the (C, K) harmonics."""
-    out = [
-        harmonics_per_cycle(t_s, strain[:, g], windows, MAX_HARMONIC_STRAIN)
-        for g in range(strain.shape[1])
-    ]
-    if frame_t_s is not None and tip_m is not None:
-        out.append(harmonics_per_cycle(frame_t_s, tip_m, windows, MAX_HARMONIC_IMAGE))
-    return out
-
-
-def _stack(per_signal: list[ComplexArray], keep: list[tuple[int, int]]) -> ComplexArray:
-    return np.column_stack([per_signal[s][:, k] for s, k in keep])
-
-
-def _sim_features(
-    sim: SimResult, frame_t_s: FloatArray | None, windows: FloatArray, keep: list[tuple[int, int]]
-) -> ComplexArray:
-    tip = None
-    if frame_t_s is not None:
-        tip = np.interp(frame_t_s, sim.time_s, sim.tip_lateral_m)
-    per = _signal_harmonics(sim.time_s, sim.strain, frame_t_s, tip, windows)
-    return _stack(per, keep)
-
-
-def _scatter_se(per_cycle: ComplexArray) -> FloatArray:
-    """Standard error of each column's mean from its scatter over the cycles (pooled over
-    real and imaginary parts)."""
-    n = per_cycle.shape[0]
-    dev = per_cycle - np.nanmean(per_cycle, axis=0)
-    var = np.nansum(np.abs(dev) ** 2, axis=0) / (2.0 * (n - 1))
-    return np.sqrt(var / n)
-
-
-@dataclass
-class _Problem:
-    """The fit's moving parts: measured features, the simulator, the parameter map."""
-
-    meas: _Measured
-    simulate: Callable[..., SimResult]  # (a0, a1[, end_s]) -> the run simulated
-    frame_t_s: FloatArray | None
-    law: str
-    a0_rule: str  # "tied" (a0 = a1), "fixed" or "free"
-    a0_fixed: float
-    evaluations: int = 0
-
-    def coefficients(self, x: FloatArray) -> tuple[float, float]:
-        a1 = float(math.exp(x[-1]))
-        if self.a0_rule == "free":
-            return float(math.exp(x[0])), a1
-        return (a1 if self.a0_rule == "tied" else self.a0_fixed), a1
-
-    def residual_per_cycle(self, a0: float, a1: float) -> tuple[ComplexArray, SimResult]:
-        self.evaluations += 1
-        sim = self.simulate(a0, a1)
-        s = _sim_features(sim, self.frame_t_s, self.meas.windows, self.meas.keep)
-        return s - self.meas.per_cycle, sim
-
-    def weighted(self, x: FloatArray) -> FloatArray:
-        r, _ = self.residual_per_cycle(*self.coefficients(x))
-        z = np.nanmean(r, axis=0) / self.meas.se
-        return np.concatenate([z.real, z.imag])
-
-
-def _measure(
-    t_s: FloatArray,
-    strain: FloatArray,
-    frame_t_s: FloatArray | None,
-    tip_m: FloatArray | None,
-    windows: FloatArray,
-) -> _Measured:
-    per = _signal_harmonics(t_s, strain, frame_t_s, tip_m, windows)
-    keep: list[tuple[int, int]] = []
-    names: list[str] = []
-    for s, h in enumerate(per):
-        full = np.all(np.isfinite(h), axis=0)
-        se = _scatter_se(h)
-        for k in range(h.shape[1]):
-            if full[k] and abs(np.mean(h[:, k])) > RESOLVED_SE * se[k]:
-                keep.append((s, k))
-                label = f"gauge {s + 1}" if s < strain.shape[1] else "image tip"
-                names.append(f"{label} h{k + 1}")
-    if not keep:
-        raise DampingFitError("no crank harmonic stands clear of the noise in any signal")
-    per_cycle = _stack(per, keep)
-    return _Measured(windows, per_cycle, keep, names, np.ones(len(keep)))
-
-
-def _with_weights(meas: _Measured, resid_per_cycle: ComplexArray) -> _Measured:
-    """Weights from the residual's scatter over the cycles (the simulation follows the
-    hub's own cycle-to-cycle changes, so this is the noise the residual carries); a floor
-    at a fifth of the signal's median keeps one quiet harmonic from ruling the fit."""
-    se = _scatter_se(resid_per_cycle)
-    signals = np.array([s for s, _ in meas.keep])
-    for s in np.unique(signals):
-        m = signals == s
-        se[m] = np.maximum(se[m], 0.2 * float(np.median(se[m])))
-    if not np.all(np.isfinite(se) & (se > 0)):
-        raise DampingFitError("the harmonics' scatter over the cycles could not be measured")
-    return _Measured(meas.windows, meas.per_cycle, meas.keep, meas.names, se)
-
-
-def _jacobian(problem: _Problem, x: FloatArray, step: float = 0.01) -> FloatArray:
-    """(2F, p) central differences of the weighted mean residual in log coefficients."""
-    cols = []
-    for j in range(x.size):
-        dx = np.zeros_like(x)
-        dx[j] = step
-        cols.append((problem.weighted(x + dx) - problem.weighted(x - dx)) / (2.0 * step))
-    return np.column_stack(cols)
-
-
-def _cycle_projection_se(
-    jac: FloatArray, resid_per_cycle: ComplexArray, se: FloatArray
-) -> FloatArray:
-    """Standard errors of the log coefficients: each cycle's weighted residual projected
-    through the linearised least squares, scattered over the cycles."""
-    z = resid_per_cycle / se
-    zc = np.concatenate([z.real, z.imag], axis=1)  # (C, 2F)
-    g = np.linalg.pinv(jac)  # (p, 2F)
-    per_cycle = zc @ g.T  # (C, p)
-    n = per_cycle.shape[0]
-    return np.std(per_cycle, axis=0, ddof=1) / math.sqrt(n)
-
-
 def _rms_differences(
     sim: SimResult,
     t_s: FloatArray,
@@ -391,6 +246,66 @@ def _rms_differences(
             e = np.interp(frame_t_s[f], sim.time_s, sim.tip_lateral_m) - tip_m[f]
             tip_rms = float(np.sqrt(np.mean(e**2)))
     return strain_rms, tip_rms
+
+
+@dataclass(frozen=True)
+class _RunSimulator:
+    """The run simulated from its measured hub up to a time: by the fit's loop model
+    (:meth:`cheap`) or the exact beam (:meth:`exact`)."""
+
+    rig: Rig
+    law: str
+    t_s: FloatArray
+    drive: TraceDrive
+
+    def _until(self, end_s: float | None) -> FloatArray:
+        if end_s is None:
+            return self.t_s
+        return self.t_s[: int(np.searchsorted(self.t_s, end_s, side="right")) + 1]
+
+    def cheap(self, a0: float, a1: float, end_s: float | None = None) -> SimResult:
+        from sim.models.registry import simulate
+
+        return simulate(
+            FIT_MODEL,
+            BeamProperties.from_config(self.rig.beam),
+            self.drive,
+            self._until(end_s),
+            a0_per_s=a0,
+            a1_s=a1,
+            damping_law=self.law,
+            gauge_positions_m=self.rig.gauges.positions_m,
+            n_modes=FIT_MODES,
+            tol=FIT_RTOL,
+        )
+
+    def exact(
+        self,
+        a0: float,
+        a1: float,
+        end_s: float,
+        n_elements: int | None = None,
+        settings: dict[str, Any] | None = None,
+    ) -> SimResult:
+        """``auto`` at :data:`EXACT_TOL`; with ``n_elements`` and an earlier FE result's
+        ``settings``, that FE on ``n_elements`` at the same tolerances."""
+        from sim.models.fe import simulate_fe
+        from sim.models.registry import simulate
+
+        beam = BeamProperties.from_config(self.rig.beam)
+        common: dict[str, Any] = {
+            "a0_per_s": a0,
+            "a1_s": a1,
+            "damping_law": self.law,
+            "gauge_positions_m": self.rig.gauges.positions_m,
+        }
+        t = self._until(end_s)
+        if n_elements is None or settings is None:
+            return simulate("auto", beam, self.drive, t, tol=EXACT_TOL, **common)
+        return simulate_fe(
+            beam, self.drive, t, n_elements=n_elements, rtol=float(settings["rtol"]),
+            atol=float(settings["atol"]), method="radau5", curvature="recovered", **common,
+        )  # fmt: skip
 
 
 def fit_damping(
@@ -432,11 +347,8 @@ def fit_damping(
     DampingFitError
         when the run cannot determine the damping.
     """
-    from sim.models.registry import simulate
-
     started = time.perf_counter()
     law = rig.damping.law if law is None else law
-    beam = BeamProperties.from_config(rig.beam)
     t = np.asarray(t_s, float)
     rocker = np.asarray(rocker_rad, float)
     eps = np.asarray(strain, float)
@@ -451,63 +363,15 @@ def fit_damping(
     n_sim = int(np.searchsorted(t, end_s, side="right")) + 1
     t_sim = t[: min(n_sim, t.size)]
     good = np.isfinite(rocker)
-    drive = TraceDrive(t[good], rocker[good])
 
-    def run(a0: float, a1: float, end: float = end_s) -> SimResult:
-        return simulate(
-            FIT_MODEL,
-            beam,
-            drive,
-            t_sim[: int(np.searchsorted(t_sim, end, side="right")) + 1],
-            a0_per_s=a0,
-            a1_s=a1,
-            damping_law=law,
-            gauge_positions_m=rig.gauges.positions_m,
-            n_modes=FIT_MODES,
-            tol=FIT_RTOL,
-        )
+    sims = _RunSimulator(rig, law, t_sim, TraceDrive(t[good], rocker[good]))
+    run, run_exact = sims.cheap, sims.exact
 
-    def run_exact(
-        a0: float,
-        a1: float,
-        end: float,
-        n_elements: int | None = None,
-        settings: dict[str, Any] | None = None,
-    ) -> SimResult:
-        if n_elements is not None and settings is not None:  # auto's FE with a finer mesh
-            from sim.models.fe import simulate_fe
-
-            return simulate_fe(
-                beam,
-                drive,
-                t_sim[: int(np.searchsorted(t_sim, end, side="right")) + 1],
-                n_elements=n_elements,
-                rtol=float(settings["rtol"]),
-                atol=float(settings["atol"]),
-                method="radau5",
-                curvature="recovered",
-                a0_per_s=a0,
-                a1_s=a1,
-                damping_law=law,
-                gauge_positions_m=rig.gauges.positions_m,
-            )
-        return simulate(
-            "auto",
-            beam,
-            drive,
-            t_sim[: int(np.searchsorted(t_sim, end, side="right")) + 1],
-            a0_per_s=a0,
-            a1_s=a1,
-            damping_law=law,
-            gauge_positions_m=rig.gauges.positions_m,
-            tol=EXACT_TOL,
-        )
-
-    meas = _measure(t, eps, ft, tip, windows)
+    meas = measure(t, eps, ft, tip, windows)
     tied = a0_start == a1_start
-    problem = _Problem(meas, run, ft, law, "tied" if tied else "fixed", a0_start)
+    problem = Problem(meas, run, ft, law, "tied" if tied else "fixed", a0_start)
     r0, sim0 = problem.residual_per_cycle(a0_start, a1_start)
-    problem.meas = meas = _with_weights(meas, r0)
+    problem.meas = meas = with_weights(meas, r0)
     x0 = np.array([math.log(a1_start)])
     z0 = problem.weighted(x0)
     before = float(np.sqrt(np.mean(z0**2)))
@@ -522,7 +386,7 @@ def fit_damping(
     free, a0_half = _a0_determined(problem, x)
     if free:
         a0_fit, a1_fit = problem.coefficients(x)
-        problem = _Problem(meas, run, ft, law, "free", a0_fit, problem.evaluations)
+        problem = Problem(meas, run, ft, law, "free", a0_fit, problem.evaluations)
         fitted = _least_squares(problem, np.log([a0_fit, a1_fit]), max_evaluations)
         if isinstance(fitted, str):
             return _failed(law, fitted, problem, started, windows)
@@ -534,7 +398,16 @@ def fit_damping(
             f"+-{a0_half:.3g} 1/s on {problem.coefficients(x)[0]:.3g})"
         )
     a1_loop = problem.coefficients(x)[1]
-    jac = _jacobian(problem, x)
+    skipped = float(windows[0, 0] - t[0])
+    needed = settle_time_s(BeamProperties.from_config(rig.beam), *problem.coefficients(x))
+    if needed > skipped:
+        why = (
+            f"the fitted damping (a1 = {a1_loop:.3g} s) rings for {needed:.1f} s after the "
+            f"start from rest, longer than the {skipped:.1f} s skipped for the rig's a1 = "
+            f"{a1_start:.3g} s; give the rig a [damping] a1 nearer the run's"
+        )
+        return _failed(law, why, problem, started, windows)
+    jac = jacobian(problem, x)
     # the cheap model's bias, measured against the exact beam, stepped out (Gauss-Newton)
     diff: ComplexArray | float = 0.0
     mesh: ComplexArray | float = 0.0
@@ -546,10 +419,10 @@ def fit_damping(
         r_fit = r_fit + diff
         z = np.nanmean(r_fit, axis=0) / meas.se
         step = -(np.linalg.pinv(jac) @ np.concatenate([z.real, z.imag]))
-        if i == 2 or np.all(np.abs(step) <= 0.02 * _cycle_projection_se(jac, r_fit, meas.se)):
+        if i == 2 or np.all(np.abs(step) <= 0.02 * cycle_projection_se(jac, r_fit, meas.se)):
             break  # r_fit and sim_fit are at x
         x = x + step
-    se = _cycle_projection_se(jac, r_fit, meas.se)
+    se = cycle_projection_se(jac, r_fit, meas.se)
     z = np.nanmean(r_fit, axis=0) / meas.se
     zz = np.concatenate([z.real, z.imag])
     dof = max(zz.size - x.size, 1)
@@ -603,16 +476,16 @@ def _model_label(sim: SimResult) -> str:
     return f"{sim.model} ({choice})" if choice else sim.model
 
 
-def _a0_determined(problem: _Problem, x: FloatArray) -> tuple[bool, float]:
+def _a0_determined(problem: Problem, x: FloatArray) -> tuple[bool, float]:
     """Whether the run pins a0 (its 95 % half-width below A0_IDENTIFIABLE of its value,
     from the two-coefficient Jacobian at the one-coefficient fit), and that half-width."""
     a0, a1 = problem.coefficients(x)
     if a0 <= 0:
         return False, math.nan
-    two = _Problem(problem.meas, problem.simulate, problem.frame_t_s, problem.law, "free", a0)
+    two = Problem(problem.meas, problem.simulate, problem.frame_t_s, problem.law, "free", a0)
     x2 = np.log([a0, a1])
     r, _ = problem.residual_per_cycle(a0, a1)
-    se2 = _cycle_projection_se(_jacobian(two, x2), r, problem.meas.se)
+    se2 = cycle_projection_se(jacobian(two, x2), r, problem.meas.se)
     problem.evaluations += two.evaluations
     n = problem.meas.per_cycle.shape[0]
     half = a0 * float(se2[0]) * float(stats.t.ppf(0.975, n - 1))
@@ -620,7 +493,7 @@ def _a0_determined(problem: _Problem, x: FloatArray) -> tuple[bool, float]:
 
 
 def _exact_difference(
-    problem: _Problem, exact_run: Callable[..., SimResult], x: FloatArray
+    problem: Problem, exact_run: Callable[..., SimResult], x: FloatArray
 ) -> tuple[ComplexArray, ComplexArray, str]:
     """(F,) exact beam minus cheap model, the harmonics' mean over the first
     EXACT_CYCLES cycles at ``x`` (both driven by the same measured hub, so the
@@ -639,12 +512,12 @@ def _exact_difference(
         sims.append(exact_run(a0, a1, end, n_elements=ne + 1, settings=sims[1].settings))
         label += f", checked with {ne + 1} elements"
     problem.evaluations += len(sims)
-    cheap, *exact = (_sim_features(sim, problem.frame_t_s, windows, meas.keep) for sim in sims)
+    cheap, *exact = (sim_features(sim, problem.frame_t_s, windows, meas.keep) for sim in sims)
     diffs = [np.nanmean(e - cheap, axis=0) for e in exact]
     return diffs[-1], diffs[-1] - diffs[0], label
 
 
-def _least_squares(problem: _Problem, x0: FloatArray, max_evaluations: int) -> FloatArray | str:
+def _least_squares(problem: Problem, x0: FloatArray, max_evaluations: int) -> FloatArray | str:
     """The fitted log coefficients, or why the least squares did not converge."""
     lo = np.full(x0.size, math.log(A_MIN))
     hi = np.full(x0.size, math.log(A1_MAX_S))
@@ -670,7 +543,7 @@ def _least_squares(problem: _Problem, x0: FloatArray, max_evaluations: int) -> F
 
 
 def _failed(
-    law: str, reason: str, problem: _Problem, started: float, windows: FloatArray
+    law: str, reason: str, problem: Problem, started: float, windows: FloatArray
 ) -> DampingFit:
     nan = math.nan
     return DampingFit(

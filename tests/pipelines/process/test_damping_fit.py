@@ -265,3 +265,32 @@ def test_process_fit_damping_refuses_a_misspelt_law_and_a_short_run(tmp_path: Pa
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and "--damping-law" in lines[0]
+
+
+@pytest.mark.slow
+def test_a_fit_whose_damping_rings_longer_than_the_start_up_skipped_gives_no_number() -> None:
+    """The simulation starts from rest: the cycles fitted start once the rig's damping has
+    settled. A run far less damped than the rig says still rings there; the fit says so
+    instead of returning the number it reached."""
+    rig = load_rig()  # a1 = 0.1 s: 2.9 s are skipped (the settling of a tenth of it)
+    t, rocker, _ = crank_record(rig, 9.0)
+    from sim.beam import BeamProperties
+    from sim.drives import TraceDrive
+    from sim.models.registry import simulate
+
+    # a1 = 0.003 s: zeta_1 = 0.037, the first mode rings for ~9 s
+    sim = simulate(
+        "modal",
+        BeamProperties.from_config(rig.beam),
+        TraceDrive(t, rocker),
+        t,
+        a0_per_s=0.003,
+        a1_s=0.003,
+        gauge_positions_m=rig.gauges.positions_m,
+    )
+    strain = sim.strain + np.random.default_rng(6).normal(0.0, STRAIN_NOISE, sim.strain.shape)
+    fit = fit_damping(rig, t, rocker, strain, source="run.mcap")
+    assert not fit.ok
+    # the first whole cycle after the 2.9 s starts at 3.5 s
+    assert "rings for 9.7 s" in fit.reason and "longer than the 3.5 s skipped" in fit.reason
+    assert "fitted_a1_s" not in fit.as_attrs()
