@@ -16,3 +16,8 @@ class RigError(BeambenchError):
         self.problem = problem
         where = f"{path}: [{key}]" if key else f"{path}:"
         super().__init__(f"{where} {problem}")
+
+
+class DampingFitError(BeambenchError):
+    """A run that cannot determine the damping (``process --fit-damping``: a hub standing
+    still, too short, no strains)."""

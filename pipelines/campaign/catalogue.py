@@ -52,6 +52,11 @@ NUMBER_COLUMNS: dict[str, tuple[str, str]] = {
     "process_wall_time_s": ("s", "wall time of the task on its worker"),
     "worker_peak_rss_bytes": ("byte", "peak resident memory of the worker process so far"),
     "log_size_bytes": ("byte", "size of the log file"),
+    # process --fit-damping (NaN without it, or when the fit failed or a0 was held)
+    "fitted_a1_s": ("s", "damping a1 fitted to the run (process --fit-damping)"),
+    "fitted_a1_ci95_s": ("s", "half-width of the 95 % interval of fitted_a1_s"),
+    "fitted_a0_per_s": ("1/s", "damping a0 of the fit (fitted, or held: see the results)"),
+    "fitted_a0_ci95_per_s": ("1/s", "half-width of the 95 % interval of a0 (NaN: a0 held)"),
 }
 for _src, _what in (("image", "images"), ("strain", "strains"), ("sim", "simulation")):
     _p = f"tip_lateral_{_src}"

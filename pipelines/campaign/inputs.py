@@ -27,6 +27,7 @@ class Options:
     model: str = "auto"
     sim_tol: float | None = None
     damping_law: str | None = None
+    fit_damping: bool = False
     rig_path: str | None = None
     calibration_path: str | None = None
     rig_sha256: str = ""

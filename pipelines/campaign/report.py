@@ -16,9 +16,11 @@ import xarray as xr
 from matplotlib.figure import Figure
 
 from pipelines.atomic import atomic_path
+from pipelines.campaign.summary import FITTED_DAMPING
 
 REPORT_NAME = "campaign.md"
 FIGURE_NAME = "campaign_response.png"
+DAMPING_FIGURE_NAME = "campaign_damping.png"
 _STYLE = {"image": ("o", "C0"), "strain": ("s", "C1"), "sim": ("^", "C2")}
 
 
@@ -53,6 +55,71 @@ def _plot(catalogue: xr.Dataset, sweep: xr.Dataset | None, path: Path) -> None:
         ax.grid(True, alpha=0.3)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
+
+
+def _fitted(catalogue: xr.Dataset) -> np.ndarray:
+    """Which runs carry a fitted a1 (process --fit-damping)."""
+    if "fitted_a1_s" not in catalogue:
+        return np.zeros(catalogue.sizes["run"], bool)
+    return np.isfinite(catalogue["fitted_a1_s"].values) & (catalogue["status"].values == "ok")
+
+
+def _plot_damping(catalogue: xr.Dataset, path: Path) -> None:
+    """Fitted a1 against the measured crank frequency, 95 % intervals as error bars."""
+    fit = _fitted(catalogue)
+    fig = Figure(figsize=(8, 4), layout="constrained")
+    ax = fig.subplots()
+    ax.errorbar(
+        catalogue["crank_frequency_hz"].values[fit],
+        catalogue["fitted_a1_s"].values[fit],
+        yerr=catalogue["fitted_a1_ci95_s"].values[fit],
+        fmt="o",
+        color="C3",
+        capsize=3,
+        label="runs: fitted a1",
+    )
+    ax.set_xlabel("crank frequency [Hz]")
+    ax.set_ylabel("fitted a1 [s]")
+    ax.set_title("Damping fitted to each run (error bars: 95 % interval)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+
+
+def _damping_lines(catalogue: xr.Dataset, out_dir: Path) -> list[str]:
+    """The fitted damping per run, when the campaign ran with --fit-damping."""
+    fit = _fitted(catalogue)
+    if not fit.any():
+        return []
+    _plot_damping(catalogue, out_dir / DAMPING_FIGURE_NAME)
+    lines = [
+        "## Damping fitted to each run",
+        "",
+        "a1 fitted to the strains' and the image tip's crank harmonics (`process "
+        "--fit-damping`), ± the half-width of its 95 % interval (the cycles' scatter; "
+        "errors shared by every cycle, as the gauge factors, are not in it).",
+        "",
+        "| run | crank Hz | a1 s | a0 1/s |",
+        "|---|---|---|---|",
+    ]
+    runs = catalogue["run"].values
+    for i in np.flatnonzero(fit):
+        r = {
+            name: float(catalogue[name].values[i])
+            for name in ("crank_frequency_hz", *FITTED_DAMPING)
+        }
+        a0 = f"{r['fitted_a0_per_s']:.4g}"
+        a0 += (
+            f" ± {r['fitted_a0_ci95_per_s']:.2g}"
+            if math.isfinite(r["fitted_a0_ci95_per_s"])
+            else " (held)"
+        )
+        lines.append(
+            f"| {runs[i]} | {r['crank_frequency_hz']:.4f} | "
+            f"{r['fitted_a1_s']:.5g} ± {r['fitted_a1_ci95_s']:.2g} | {a0} |"
+        )
+    return [*lines, "", f"![fitted a1 against crank frequency]({DAMPING_FIGURE_NAME})", ""]
 
 
 def _fmt(value: float, sd: float, scale: float, digits: int) -> str:
@@ -102,6 +169,7 @@ def write_campaign_report(
         cells.append(status)
         lines.append("| " + " | ".join(cells) + " |")
     lines += ["", f"![tip response against crank frequency]({FIGURE_NAME})", ""]
+    lines += _damping_lines(catalogue, out_dir)
     if sweep is not None:
         lines.append(
             f"Curves: `beambench sweep` of the simulator on the exact four-bar drive "

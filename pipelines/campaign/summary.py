@@ -19,6 +19,8 @@ from pipelines.campaign.harmonics import Fundamental, crank_frequency, fit_funda
 from pipelines.results.compare import ERROR_METRICS, sim_start_s
 
 SOURCES = ("image", "strain", "sim")
+#: the results' ``--fit-damping`` attributes the catalogue keeps
+FITTED_DAMPING = ("fitted_a1_s", "fitted_a1_ci95_s", "fitted_a0_per_s", "fitted_a0_ci95_per_s")
 _SERIES = {"image": "tip_lateral", "strain": "tip_lateral_strain", "sim": "sim_tip_lateral"}
 
 
@@ -47,6 +49,8 @@ def summarise_run(ds: xr.Dataset) -> dict[str, float]:
         out.update(_fundamental_columns(f"tip_lateral_{source}", fit, ref))
     for metric in ERROR_METRICS:
         out[metric.key] = _scalar(ds.attrs.get(metric.key))
+    for key in FITTED_DAMPING:  # NaN without --fit-damping, or when the fit failed
+        out[key] = _scalar(ds.attrs.get(key))
     out["frames_total"] = float(ds.attrs.get("frames_total", math.nan))
     out["frames_failed"] = float(ds.attrs.get("frames_failed", math.nan))
     return out

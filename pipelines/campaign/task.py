@@ -93,6 +93,7 @@ def process_task(spec: RunSpec) -> dict[str, Any]:
                 max_tip_uncertainty_m=MAX_TIP_UNCERTAINTY_M
                 if opts.max_tip_uncertainty_m is None
                 else opts.max_tip_uncertainty_m,
+                fit_damping=opts.fit_damping,
             )
             write_processed(processed, Path(spec.results_path))
     except KNOWN_ERRORS as exc:

@@ -59,6 +59,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sim-tol", type=float, default=None, metavar="REL")
     add_damping_law_argument(p)
     add_max_tip_uncertainty_argument(p)
+    p.add_argument(
+        "--fit-damping",
+        action="store_true",
+        help="fit each run's damping (process --fit-damping); the catalogue and the report "
+        "carry the fitted a1 with its interval",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -82,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         model=args.model,
         sim_tol=args.sim_tol,
         damping_law=args.damping_law,
+        fit_damping=args.fit_damping,
         rig_path=str(Path(args.rig).resolve()) if args.rig else None,
         calibration_path=str(Path(args.calibration).resolve()) if args.calibration else None,
         rig_sha256=sha256_file(args.rig) if args.rig else "",

@@ -48,6 +48,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_damping_law_argument(p)
     add_max_tip_uncertainty_argument(p)
+    p.add_argument(
+        "--fit-damping",
+        action="store_true",
+        help="fit the damping law's coefficients (a1; a0 if the run determines it) to the "
+        "measured strains and image tip, and simulate with them",
+    )
     p.add_argument("--workers", type=int, default=None, help="processes measuring frames")
     add_viewer_arguments(p)
 
@@ -104,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
         workers=args.workers,
         damping_law=args.damping_law,
         max_tip_uncertainty_m=MAX_TIP_UNCERTAINTY_M if limit_m is None else limit_m,
+        fit_damping=args.fit_damping,
     )
     try:
         write_processed(processed, out)
@@ -179,5 +186,34 @@ def print_summary(processed: object, out: Path) -> None:
             f"log decrement {float(a['free_decay_log_decrement']):.4f}, "
             f"a0 = a1 = {float(a['free_decay_a0_per_s_matched']):.3g}"
         )
+    for line in fitted_damping_lines(a):
+        print("  " + line)
     t = processed.timings.as_dict()
     print("  time: " + ", ".join(f"{k[:-2]} {v:.2f} s" for k, v in t.items()))
+
+
+def fitted_damping_lines(a: dict[str, object]) -> list[str]:
+    """What ``--fit-damping`` found, for people (empty without it)."""
+    if "fitted_damping_failed" in a:
+        return [f"damping not fitted ({a['fitted_damping_law']} law): {a['fitted_damping_failed']}"]
+    if "fitted_damping_note" in a:
+        return [f"damping not fitted: {a['fitted_damping_note']}"]
+    if "fitted_a1_s" not in a:
+        return []
+
+    def v(key: str) -> float:
+        return float(a[key])  # type: ignore[arg-type]
+
+    if "fitted_a0_ci95_per_s" in a:
+        a0 = f"a0 = {v('fitted_a0_per_s'):.4g} +- {v('fitted_a0_ci95_per_s'):.2g} 1/s"
+    else:
+        a0 = f"a0 = {v('fitted_a0_per_s'):.4g} 1/s, {a['fitted_a0_note']}"
+    return [
+        f"fitted damping ({a['fitted_damping_law']} law): a1 = {v('fitted_a1_s'):.5g} "
+        f"+- {v('fitted_a1_ci95_s'):.2g} s (95 %), {a0}",
+        f"  strains sim - measured {v('fitted_strain_rms_before') * 1e6:.2f} -> "
+        f"{v('fitted_strain_rms_after') * 1e6:.2f} microstrain RMS, image tip "
+        f"{v('fitted_tip_rms_before_m') * 1e3:.3f} -> {v('fitted_tip_rms_after_m') * 1e3:.3f} mm "
+        f"RMS over {int(v('fitted_cycles'))} cycles from {v('fitted_from_s'):.1f} s "
+        f"(fit {v('fitted_wall_time_s'):.1f} s)",
+    ]

@@ -22,6 +22,7 @@ from daq.log import LogError, iter_frames, read_run
 from pipelines import __version__
 from pipelines.errors import BeambenchError
 from pipelines.process.alignment import Alignment, estimate_offset
+from pipelines.process.damping_fit import check_run_supports_fit, fit_damping_attrs
 from pipelines.process.failures import FailureSummary, summarise_failures
 from pipelines.process.frames import MeasuredFrame, as_arrays, measure_frames
 from pipelines.process.free_decay import find_free_decay, simulate_release
@@ -67,6 +68,7 @@ class Timings:
     strain_s: float = 0.0
     damping_s: float = 0.0
     simulate_s: float = 0.0
+    damping_fit_s: float = 0.0
     model_wait_s: float = 0.0
     write_s: float = 0.0
     viewer_s: float = 0.0
@@ -227,10 +229,14 @@ def process_run(
     workers: int | None = None,
     damping_law: str | None = None,
     max_tip_uncertainty_m: float = MAX_TIP_UNCERTAINTY_M,
+    fit_damping: bool = False,
 ) -> Processed:
     """Process the run in ``log_path``; ``damping_law`` (``"paper"`` | ``"material"``,
     default: the rig's ``[damping] law``) is the simulation's a1 term;
-    ``max_tip_uncertainty_m`` the stated tip uncertainty beyond which a frame is refused.
+    ``max_tip_uncertainty_m`` the stated tip uncertainty beyond which a frame is refused;
+    ``fit_damping`` fits the law's coefficients to the run
+    (:mod:`pipelines.process.damping_fit`) unless the run holds a free decay (whose
+    identification then wins).
 
     The frames that were not measured are counted by reason, one warning line each, and
     a warning names the main reason and the option that would help when fewer than half
@@ -249,6 +255,8 @@ def process_run(
     t_s = (samples.t_ns - samples.t_ns[0]).astype(float) * 1e-9
     t_zero_ns = int(samples.t_ns[0])
     timings.read_s = time.perf_counter() - t0
+    if fit_damping:  # before the frames: a run that cannot support the fit stops here
+        check_run_supports_fit(rig, str(log_path), t_s, samples.rocker_angle_rad, samples.strain)
 
     t0 = time.perf_counter()
     calibration = calibrate(run, rig, calibration_path)
@@ -307,6 +315,17 @@ def process_run(
         frame_t_s = frame_t_cam_s
     timings.align_s = time.perf_counter() - t0
 
+    fit_attrs: dict[str, Any] = {}
+    if fit_damping:
+        t0 = time.perf_counter()
+        law = rig.damping.law if damping_law is None else damping_law
+        fit_attrs, refit = fit_damping_attrs(
+            rig, law, t_s, samples, frame_t_s, cols, decay, str(log_path),
+            lambda r: simulate_measured(r, t_s, samples.rocker_angle_rad, model, sim_tol, law),
+        )  # fmt: skip
+        sim = refit or sim
+        timings.damping_fit_s = time.perf_counter() - t0
+
     attrs = {
         "source_log": str(log_path),
         "rig_json": rig.to_json(),
@@ -327,6 +346,7 @@ def process_run(
         "t_zero_ns": t_zero_ns,
         **hub_attrs(hub, rig),
         **(decay.as_attrs() if decay is not None else {}),
+        **fit_attrs,
     }
     results = make_results(
         time_s=t_s,

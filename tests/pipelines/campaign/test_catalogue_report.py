@@ -61,6 +61,8 @@ def test_a_run_is_done_only_with_the_same_inputs_and_its_results(tmp_path: Path)
     assert is_done(spec, row)
     (other,) = plan_runs([log], tmp_path, Options(damping_law="material"))
     assert not is_done(other, row)
+    (fitted,) = plan_runs([log], tmp_path, Options(fit_damping=True))
+    assert not is_done(fitted, row)  # a run processed without the fit is redone with it
     log.write_bytes(b"y" * 11)
     (changed,) = plan_runs([log], tmp_path, Options())
     assert not is_done(changed, row)
@@ -115,3 +117,22 @@ def test_sweep_ranges_and_lists_are_checked() -> None:
     for bad in ("x", "-1", "0.1,0.1", ""):
         with pytest.raises(BeambenchError, match="--a1"):
             parse_list(bad, "--a1")
+
+
+def test_report_plots_the_fitted_damping_against_crank_frequency(tmp_path: Path) -> None:
+    rows = [_row("a-run", 0.8), _row("b-run", 1.2), _row("c-run", 1.0)]
+    rows[0].update(fitted_a1_s=0.0512, fitted_a1_ci95_s=0.0004, fitted_a0_per_s=0.0512)
+    rows[1].update(
+        fitted_a1_s=0.0498, fitted_a1_ci95_s=0.0003, fitted_a0_per_s=0.07, fitted_a0_ci95_per_s=0.01
+    )
+    # c-run: processed without a fit (or the fit failed): not in the damping table
+    ds = to_dataset(rows, {})
+    back = read_catalogue(write_catalogue(ds, tmp_path / "catalogue.nc"))
+    assert back["fitted_a1_ci95_s"].attrs["units"] == "s"
+    text = write_campaign_report(back, tmp_path, title="t").read_text()
+    assert "## Damping fitted to each run" in text
+    assert "| a-run | 0.8000 | 0.0512 ± 0.0004 | 0.0512 (held) |" in text
+    assert "| b-run | 1.2000 | 0.0498 ± 0.0003 | 0.07 ± 0.01 |" in text
+    assert "| c-run | 1.0000 | " not in text
+    png = (tmp_path / "campaign_damping.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"

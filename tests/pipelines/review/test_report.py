@@ -178,3 +178,43 @@ def test_a_run_without_usable_frames_still_gives_results_recording_and_report(
     md = write_report(back, tmp_path / "report", title="no frames").read_text("utf-8")
     assert "| tip lateral, image - sim, RMS | n/a | mm |" in md
     assert "camera-to-DAQ time offset: n/a ms" in md
+
+
+def test_report_states_the_fitted_damping_with_its_intervals(tmp_path: Path) -> None:
+    ds = _results()
+    ds.attrs.update(
+        {
+            "fitted_damping_law": "material",
+            "fitted_a0_per_s": 0.0501,
+            "fitted_a1_s": 0.05012,
+            "fitted_a1_ci95_s": 0.00031,
+            "fitted_a0_note": "held equal to a1 (the paper's a0 = a1): the run does not "
+            "determine a0",
+            "fitted_residual_before_se": 812.0,
+            "fitted_residual_after_se": 1.3,
+            "fitted_strain_rms_before": 6.1e-6,
+            "fitted_strain_rms_after": 0.9e-6,
+            "fitted_tip_rms_before_m": 1.2e-3,
+            "fitted_tip_rms_after_m": 0.06e-3,
+            "fitted_birge_ratio": 1.4,
+            "fitted_cycles": 11,
+            "fitted_from_s": 1.6,
+            "fitted_harmonics": "gauge 1 h1, image tip h1",
+            "fitted_loop_model": "modal n_modes=4",
+            "fitted_a1_loop_s": 0.05015,
+            "fitted_exact_model": "auto:fe-corot",
+        }
+    )
+    md = write_report(ds, tmp_path, title="fitted").read_text("utf-8")
+    assert "## Damping fitted to the run" in md
+    table = _table(md)
+    assert table["a1"] == ("0.05012 s", "+-0.00031 s")
+    assert table["a0"][1].startswith("held equal to a1")
+    assert table["strains (RMS, microstrain)"] == ("6.10", "0.90")
+    assert table["image tip (RMS, mm)"] == ("1.200", "0.060")
+    ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("fitted_")}
+    ds.attrs["fitted_damping_failed"] = "the least squares did not converge in 2 simulations"
+    ds.attrs["fitted_damping_law"] = "paper"
+    md = write_report(ds, tmp_path, title="unfitted").read_text("utf-8")
+    assert "Not fitted (paper law): the least squares did not converge" in md
+    assert "| a1 |" not in md
