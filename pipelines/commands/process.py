@@ -40,8 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="REL",
-        help="relative tip error --model auto aims at (default 0.02: what the measurements "
-        "resolve; 1e-4 runs the exact beam)",
+        help="relative tip error --model auto aims at (default: a fifth of the image "
+        "measurement's RMS tip uncertainty on the run, 1e-3 without frames)",
     )
     add_damping_law_argument(p)
     p.add_argument("--workers", type=int, default=None, help="processes measuring frames")
@@ -88,14 +88,12 @@ def run(args: argparse.Namespace) -> int:
         raise BeambenchError(f"--sim-tol must be in (0, 0.5), got {args.sim_tol}")
     rig = load_rig(args.rig) if args.rig else None
     cal = Path(args.calibration) if args.calibration else None
-    from pipelines.process.run import SIM_TOL
-
     processed = process_run(
         log_path,
         rig=rig,
         calibration_path=cal,
         model=args.model,
-        sim_tol=SIM_TOL if args.sim_tol is None else args.sim_tol,
+        sim_tol=args.sim_tol,
         workers=args.workers,
         damping_law=args.damping_law,
     )
