@@ -146,6 +146,11 @@ def print_summary(processed: object, out: Path) -> None:
     off = a.get("camera_to_daq_offset_s", math.nan)
     print(f"  camera-to-DAQ offset {off * 1e3:.2f} ms ({processed.alignment.reason or 'ok'})")
     print(f"  simulation {a['sim_model']} (solve {processed.sim.wall_time_s:.2f} s)")
+    if "sim_tip_error_estimate_m" in a:
+        est_mm = float(a["sim_tip_error_estimate_m"]) * 1e3
+        print(
+            f"  simulation's estimated tip error {est_mm:.4f} mm (tolerance: {a['sim_tol_rule']})"
+        )
     for key in (
         "tip_lateral_image_vs_sim_rms_m",
         "tip_lateral_strain_vs_image_rms_m",
