@@ -55,6 +55,11 @@ MIN_CYCLES = 3.0
 # A harmonic is kept if noise alone would give its power with at most this probability
 # (over all candidates).
 HARMONIC_FALSE_ALARM = 0.01
+UNRESOLVED_RUN = 3
+# the decay of the harmonics' powers beyond the kept ones: fitted to this many of the last
+# kept, and no slower than this ratio per harmonic (see _dropped_power)
+DECAY_FIT_HARMONICS = 4
+MAX_DECAY_RATIO = 0.7
 # Harmonics used while the fundamental frequency is refined.
 FREQUENCY_SEARCH_HARMONICS = 6
 
@@ -128,20 +133,27 @@ def _projections(basis: FloatArray, y: FloatArray) -> FloatArray:
     return np.asarray(solve_triangular(upper, basis.T @ y, trans="T", lower=False))
 
 
-def _noise_psd(t: FloatArray, resid: FloatArray, f_max_hz: float) -> float:
-    """The residual's mean one-sided PSD (rad^2/Hz) below ``f_max_hz`` (Welch, 2 s
-    segments): the noise where the harmonics are, whatever the anti-alias filter did
-    above (the pot's noise after a 150 Hz filter is white below it, not up to 200 Hz)."""
+def _noise_psd(t: FloatArray, resid: FloatArray, f_max_hz: float, n_fitted: int) -> float:
+    """The noise's mean one-sided PSD (rad^2/Hz) below ``f_max_hz``, from the residual of
+    a fit of ``n_fitted`` parameters in that band (Welch, 2 s segments): the noise where
+    the harmonics are, whatever the anti-alias filter did above (the pot's noise after a
+    150 Hz filter is white below it, not up to 200 Hz). The band holds ``2 f_max T``
+    degrees of freedom of which the fit took ``n_fitted`` (6 % over 16 cycles): the
+    residual's PSD is scaled up by that share."""
     from scipy.signal import welch
 
     dt = float(t[-1] - t[0]) / (t.size - 1)
     grid = np.linspace(t[0], t[-1], t.size)
     f, pxx = welch(np.interp(grid, t, resid), fs=1.0 / dt, nperseg=min(t.size, round(2.0 / dt)))
     band = (f > 0) & (f <= f_max_hz)
-    return float(np.mean(pxx[band])) if band.any() else float(np.mean(pxx[1:]))
+    psd = float(np.mean(pxx[band])) if band.any() else float(np.mean(pxx[1:]))
+    dof = 2.0 * f_max_hz * float(t[-1] - t[0])
+    return psd / max(1.0 - n_fitted / dof, 0.5)
 
 
-def _harmonics_kept(coef: FloatArray, omega: float, t: FloatArray, resid: FloatArray) -> int:
+def _harmonics_kept(
+    coef: FloatArray, omega: float, t: FloatArray, resid: FloatArray
+) -> tuple[int, float]:
     """How many harmonics to keep: up to the highest one whose fitted power stands out of
     the noise, at a false-alarm probability of :data:`HARMONIC_FALSE_ALARM` over all
     the candidates.
@@ -153,13 +165,42 @@ def _harmonics_kept(coef: FloatArray, omega: float, t: FloatArray, resid: FloatA
     below that is not resolved and is dropped; its acceleration (its amplitude times
     ``(m omega)^2``) would be mostly noise. GCV on the angle keeps too many: on a four-bar
     whose harmonics decay slowly it kept 23 where 13 resolve them, with a 4x larger
-    acceleration error."""
+    acceleration error. Returns the number kept and ``V`` (rad^2)."""
     m_max = (coef.size - 1) // 2
     span = float(t[-1] - t[0])
-    v = _noise_psd(t, resid, m_max * omega / (2.0 * math.pi)) / span
+    v = _noise_psd(t, resid, m_max * omega / (2.0 * math.pi), coef.size) / span
     power = 0.5 * (coef[1::2] ** 2 + coef[2::2] ** 2)
-    resolved = np.flatnonzero(power > v * math.log(m_max / HARMONIC_FALSE_ALARM))
-    return int(resolved[-1]) + 1 if resolved.size else 1
+    resolved = power > v * math.log(m_max / HARMONIC_FALSE_ALARM)
+    # up to the last resolved harmonic before UNRESOLVED_RUN unresolved ones in a row (a
+    # symmetric linkage's even harmonics may vanish; noise far above the last real
+    # harmonic must not pull in everything below it)
+    kept = 1
+    for m in range(1, m_max + 1):
+        if resolved[m - 1]:
+            kept = m
+        elif m - kept >= UNRESOLVED_RUN:
+            break
+    return kept, v
+
+
+def _dropped_power(power: FloatArray, kept: int, var: float) -> FloatArray:
+    """Estimated powers (rad^2) of the harmonics above the kept ones, up to the last fitted.
+
+    Their fitted powers are mostly noise, so they are extrapolated instead: a linkage's
+    angle is an analytic periodic function of the crank angle, whose harmonics decay
+    geometrically; the ratio is fitted to the last :data:`DECAY_FIT_HARMONICS` kept ones
+    (their powers less the noise's share V), at most :data:`MAX_DECAY_RATIO`."""
+    m = np.arange(1, power.size + 1)
+    last = np.arange(max(0, kept - DECAY_FIT_HARMONICS), kept)
+    p = power[last] - var
+    good = p > 0
+    if good.sum() >= 2:
+        slope, icpt = np.polyfit(m[last][good], np.log(p[good]), 1)
+        ratio = min(math.exp(float(slope)), MAX_DECAY_RATIO)
+        p_kept = math.exp(float(icpt + slope * kept))
+    else:
+        ratio, p_kept = MAX_DECAY_RATIO, max(float(power[kept - 1]) - var, var)
+    return np.asarray(p_kept * ratio ** (m[kept:] - kept), dtype=float)
 
 
 def _fundamental(tc: FloatArray, y: FloatArray) -> float | None:
@@ -235,6 +276,9 @@ class FittedTraceDrive:
         spline, p_s, h_s, rss_s = _best_spline(t, y, 0)
         best_gcv = _gcv(rss_s, n, p_s) if spline is not None else math.inf
         self._omega = 0.0
+        # the harmonics' noise (see harmonic_uncertainty); NaN without harmonics
+        self.coefficient_var_rad2 = math.nan
+        self.dropped_power_rad2 = np.zeros(0)
         self._coef = np.zeros(1)  # the spline carries the mean
         self._spline = spline
         kind, n_harm, h_best, p_best, rss_best = "spline", 0, h_s, p_s, rss_s
@@ -244,7 +288,7 @@ class FittedTraceDrive:
             m_max = max(1, min(MAX_HARMONICS, int(2.0 * math.pi * MAX_HARMONIC_HZ / omega)))
             basis = _harmonic_basis(tc, omega, m_max)
             full = np.linalg.solve(basis.T @ basis, basis.T @ y)
-            m_best = _harmonics_kept(full, omega, t, y - basis @ full)
+            m_best, coef_var = _harmonics_kept(full, omega, t, y - basis @ full)
             b = basis[:, : 2 * m_best + 1]
             coef = np.linalg.solve(b.T @ b, b.T @ y)
             resid = y - b @ coef
@@ -256,6 +300,9 @@ class FittedTraceDrive:
                 self._omega, self._coef, self._spline = omega, coef, r_spline
                 n_harm, h_best, p_best, rss_best = m_best, r_h, p_h + r_p, r_rss
                 kind = "harmonics" if r_spline is None else "harmonics+spline"
+                self.coefficient_var_rad2 = coef_var
+                power = 0.5 * (full[1::2] ** 2 + full[2::2] ** 2)
+                self.dropped_power_rad2 = _dropped_power(power, m_best, coef_var)
         if self._spline is None and kind == "spline":
             raise SimInputError("angle_rad", "no spline could be fitted to the trace")
         self._n_harm = n_harm
@@ -275,6 +322,16 @@ class FittedTraceDrive:
             "n_parameters": p_best,
             "residual_rms_rad": math.sqrt(rss_best / max(n - p_best, 1)),
         }
+
+    def harmonic_uncertainty(self) -> tuple[float, int, float, FloatArray] | None:
+        """What the fit leaves uncertain, for a harmonic fit (None for a spline alone):
+        ``(fundamental rad/s, harmonics kept, V, dropped)``: each kept harmonic's cosine and
+        sine coefficients carry the noise's variance ``V`` (rad^2), and ``dropped`` (rad^2)
+        are the powers of the harmonics above the kept ones, extrapolated from the kept
+        ones' decay (:func:`_dropped_power`): an estimate of what was left out."""
+        if self._n_harm == 0:
+            return None
+        return self._omega, self._n_harm, self.coefficient_var_rad2, self.dropped_power_rad2
 
     def _check(self, t_s: ArrayLike) -> FloatArray:
         t = np.asarray(t_s, dtype=float)

@@ -32,15 +32,64 @@ from typing import Any
 import numpy as np
 
 from pipelines.process.frames import MeasuredFrame
+from sim.beam import BeamProperties
+from sim.modes import modal_integrals
 from sim.result import SimResult
+from sim.trace_fit import FittedTraceDrive
 
 IMAGE_SHARE = 0.2
+# modes of the linear transfer function the drive's uncertainty is carried through
+DRIVE_ERROR_MODES = 4
 NO_FRAMES_TOL = 1e-3
 PRIOR_SIM_TOL = 1e-4
 # auto's tolerance must lie in (0, 0.5); tighter than this the FE's time integration
 # reaches its own floor (sim.models.model_choice: rtol >= 1e-11)
 MIN_SIM_TOL = 1e-8
 MAX_SIM_TOL = 0.2
+
+
+def drive_tip_uncertainty_m(
+    beam: BeamProperties,
+    drive: FittedTraceDrive,
+    t_s: np.ndarray,
+    a0_per_s: float,
+    a1_s: float,
+    damping_law: str,
+) -> float:
+    """The RMS tip error the fitted drive's own uncertainty causes (m); NaN when the drive
+    is not a harmonic fit.
+
+    Each kept harmonic m of the hub angle carries a coefficient noise of variance V (the
+    pot's noise at that frequency over the run: shorter runs, more of it), each dropped
+    one its fitted power; both reach the tip through the linear beam at that frequency,
+    ``H(W) = W^2 phi_tip^T (K_e - W^2 M + i W C)^-1 b`` (assumed modes, Euler load
+    ``-theta'' b``; the centrifugal stiffening with the run's mean square hub rate,
+    ``K_e = K + <theta'^2> (G - M)``; ``C = a0 M + a1 K`` plus ``a1 <theta'^2> G`` for
+    the paper's law). Near the first mode (3.7 Hz) the pot's noise matters most."""
+    found = drive.harmonic_uncertainty()
+    if found is None or not math.isfinite(found[2]):
+        return math.nan
+    omega, kept, var, dropped = found
+    mi = modal_integrals(
+        beam.length_m,
+        beam.hub_offset_m,
+        beam.mass_per_length_kg_m,
+        beam.bending_stiffness_n_m2,
+        DRIVE_ERROR_MODES,
+    )
+    rate_sq = float(np.mean(drive.rate(t_s) ** 2))
+    k_e = mi.stiffness + rate_sq * (mi.centrifugal - mi.mass)
+    c = a0_per_s * mi.mass + a1_s * mi.stiffness
+    if damping_law == "paper":
+        c = c + a1_s * rate_sq * mi.centrifugal
+    m = np.arange(1, kept + dropped.size + 1)
+    power = np.r_[np.full(kept, var), dropped]
+    total = 0.0
+    for mm, p in zip(m, power, strict=True):
+        w = mm * omega
+        q = np.linalg.solve(k_e - w * w * mi.mass + 1j * w * c, w * w * mi.euler)
+        total += abs(complex(mi.tip_shape @ q)) ** 2 * float(p)
+    return math.sqrt(total)
 
 
 def image_tip_sd_rms_m(frames: list[MeasuredFrame]) -> float:
@@ -67,7 +116,9 @@ class ToleranceChoice:
     (NaN: not ``auto``). ``tip_tol_m``: that tolerance in metres. ``image_sd_rms_m``: the
     frames' RMS stated tip uncertainty. ``estimate_rel`` / ``estimate_m``: ``auto``'s
     estimate of the simulation's tip error (max over the run, relative to the largest tip
-    deflection / in metres). ``resimulated``: the a-priori run was not good enough."""
+    deflection / in metres). ``resimulated``: the a-priori run was not good enough.
+    ``drive_sd_m``: the RMS tip error the fitted drive's uncertainty causes
+    (:func:`drive_tip_uncertainty_m`; not in ``auto``'s estimate)."""
 
     rule: str
     tol: float
@@ -77,6 +128,7 @@ class ToleranceChoice:
     estimate_m: float
     resimulated: bool
     prior_tol: float
+    drive_sd_m: float = math.nan
 
     def as_attrs(self) -> dict[str, Any]:
         return {
@@ -88,7 +140,17 @@ class ToleranceChoice:
             "sim_tip_error_estimate_rel": self.estimate_rel,
             "sim_tip_error_estimate_m": self.estimate_m,
             "sim_resimulated": int(self.resimulated),
+            "sim_drive_tip_uncertainty_m": self.drive_sd_m,
         }
+
+
+def drive_sd_of(sim: SimResult) -> float:
+    """The drive's tip uncertainty recorded by ``simulate_measured`` (NaN if none)."""
+    drive = sim.settings.get("drive", {})
+    try:
+        return float(drive.get("tip_uncertainty_m", math.nan))
+    except (AttributeError, TypeError, ValueError):
+        return math.nan
 
 
 def auto_estimate(sim: SimResult) -> float:
@@ -133,6 +195,7 @@ def check_tolerance(
         estimate_m=est * scale,
         resimulated=again is not None,
         prior_tol=prior_tol,
+        drive_sd_m=drive_sd_of(sim),
     )
     return choice, again
 
@@ -150,6 +213,7 @@ def after_resimulation(choice: ToleranceChoice, sim: SimResult) -> ToleranceChoi
         estimate_m=est * scale,
         resimulated=True,
         prior_tol=choice.prior_tol,
+        drive_sd_m=drive_sd_of(sim),
     )
 
 
@@ -169,4 +233,5 @@ def fixed_choice(
         estimate_m=est * scale,
         resimulated=False,
         prior_tol=math.nan,
+        drive_sd_m=drive_sd_of(sim),
     )

@@ -29,6 +29,7 @@ from pipelines.process.model_error import (
     ToleranceChoice,
     after_resimulation,
     check_tolerance,
+    drive_tip_uncertainty_m,
     fixed_choice,
 )
 from pipelines.process.strain_shape import StrainShape, modal_curvature_shape
@@ -185,7 +186,12 @@ def simulate_measured(
         n_modes=4,
         tol=tol if model == "auto" else None,  # modal and fe at their own tolerances
     )
-    return replace(result, settings={**result.settings, "drive": dict(drive.settings)})
+    law = rig.damping.law if damping_law is None else damping_law
+    drive_sd = drive_tip_uncertainty_m(
+        beam, drive, t_s[good], rig.damping.a0_per_s, rig.damping.a1_s, law
+    )
+    settings = {**result.settings, "drive": {**drive.settings, "tip_uncertainty_m": drive_sd}}
+    return replace(result, settings=settings)
 
 
 def _model_side(

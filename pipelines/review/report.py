@@ -274,7 +274,9 @@ def _model_error_lines(a: Mapping[str, object], errors: Mapping[str, Any]) -> li
     sd = v("image_tip_lateral_sd_rms_m")
     # the simulation's error taken out in quadrature (its estimate is a bound on the max)
     without = math.sqrt(max(rms**2 - est**2, 0.0)) if math.isfinite(est) else math.nan
-    expected = math.sqrt(sd**2 + est**2) if math.isfinite(est) else sd
+    drive = v("sim_drive_tip_uncertainty_m")
+    parts = [x for x in (sd, est, drive) if math.isfinite(x)]
+    expected = math.sqrt(sum(x * x for x in parts)) if parts else math.nan
     return [
         "## Image against simulation, and the simulation's own error",
         "",
@@ -288,12 +290,15 @@ def _model_error_lines(a: Mapping[str, object], errors: Mapping[str, Any]) -> li
         f"| simulation's estimated error (its model, max over the run) | "
         f"{format_value(est, 1e3)} |",
         f"| image - sim, RMS, the simulation's error taken out | {format_value(without, 1e3)} |",
+        f"| simulation's uncertainty from the measured hub angle (fitted drive), RMS | "
+        f"{format_value(drive, 1e3)} |",
         f"| image's stated uncertainty, RMS over the frames | {format_value(sd, 1e3)} |",
-        f"| expected image - sim RMS from these two alone | {format_value(expected, 1e3)} |",
+        f"| expected image - sim RMS from these three alone | {format_value(expected, 1e3)} |",
         "",
         "The image's stated uncertainty is its edge fits' noise (calibration errors are not "
-        "in it); the simulation's estimate does not include the drive's error (the "
-        "potentiometer trace fitted by harmonics of the crank, `sim_drive`).",
+        "in it). The model's estimate is its numerical error; the drive's is the "
+        "potentiometer's noise left in the fitted hub angle (`sim_drive`), carried through "
+        "the linear beam.",
         "",
     ]
 

@@ -91,6 +91,11 @@ def test_fitted_drive_errors_on_a_filtered_noisy_four_bar_trace() -> None:
     assert s["residual_rms_rad"] == pytest.approx(sigma_out, rel=0.05)
     kept = int(s["harmonics"])
     span = float(t[-1] - t[0])
+    # each harmonic coefficient's noise variance: the in-band PSD (white before the filter,
+    # which is flat below 40 Hz) over the span; Welch over ~19 segments resolves it to ~5 %
+    found = d.harmonic_uncertainty()
+    assert found is not None and found[1] == kept
+    assert found[2] == pytest.approx(NOISE_RAD**2 / (FS_ACQ_HZ / 2) / span, rel=0.1)
     inside = (t > t[0] + 0.25) & (t < t[-1] - 0.25)
     ends = ~inside
     for order, name in enumerate(("angle", "rate", "accel")):
