@@ -32,6 +32,7 @@ from pipelines.process.model_error import (
     drive_tip_uncertainty_m,
     fixed_choice,
 )
+from pipelines.process.steady_state import simulate_steady
 from pipelines.process.strain_shape import StrainShape, modal_curvature_shape
 from pipelines.progress import Progress
 from pipelines.results.dataset import make_results
@@ -168,25 +169,35 @@ def simulate_measured(
     """The beam driven by the measured hub angle (potentiometer trace, fitted by
     :class:`sim.trace_fit.FittedTraceDrive`); ``tol`` is the relative tip error ``auto``
     aims at; ``damping_law`` (default: the rig's) the a1 term. The result's
-    ``settings["drive"]`` describes the fit."""
+    ``settings["drive"]`` describes the fit. A drive fitted by harmonics alone repeats, and
+    the beam is simulated to its periodic steady state only
+    (:mod:`pipelines.process.steady_state`, ``settings["steady_state"]``)."""
     good = np.isfinite(rocker_rad)
     drive = FittedTraceDrive(t_s[good], rocker_rad[good])
     beam = BeamProperties.from_config(rig.beam)
+    law = rig.damping.law if damping_law is None else damping_law
     from sim.models.registry import simulate
 
-    result = simulate(
-        model,
-        beam,
-        drive,
-        t_s,
-        a0_per_s=rig.damping.a0_per_s,
-        a1_s=rig.damping.a1_s,
-        damping_law=rig.damping.law if damping_law is None else damping_law,
-        gauge_positions_m=rig.gauges.positions_m,
-        n_modes=4,
-        tol=tol if model == "auto" else None,  # modal and fe at their own tolerances
-    )
-    law = rig.damping.law if damping_law is None else damping_law
+    def run(times: np.ndarray) -> SimResult:
+        return simulate(
+            model,
+            beam,
+            drive,
+            times,
+            a0_per_s=rig.damping.a0_per_s,
+            a1_s=rig.damping.a1_s,
+            damping_law=law,
+            gauge_positions_m=rig.gauges.positions_m,
+            n_modes=4,
+            tol=tol if model == "auto" else None,  # modal and fe at their own tolerances
+        )
+
+    result = None
+    if drive.settings["kind"] == "harmonics":
+        period_s = 1.0 / float(drive.settings["fundamental_hz"])
+        result = simulate_steady(run, t_s, period_s, SETTLE_S, tol)
+    if result is None:
+        result = run(t_s)
     drive_sd = drive_tip_uncertainty_m(
         beam, drive, t_s[good], rig.damping.a0_per_s, rig.damping.a1_s, law
     )
