@@ -93,6 +93,7 @@ def run(quick: bool) -> int:
         ("  during the frames: free-decay search", -t.damping_s),
         (f"  during the frames: simulate ({ds.attrs['sim_model']})", -t.simulate_s),
         ("wait for the simulation after the frames", t.model_wait_s),
+        ("simulate again at the frames' tolerance", t.resimulate_s),
         ("align clocks", t.align_s),
         ("write results", t.write_s),
         ("Rerun .rrd", t.viewer_s),
@@ -115,7 +116,12 @@ def run(quick: bool) -> int:
     print("errors against the synthetic truth:")
     for line in notes:
         print(f"  {line}")
-    for key in ("tip_lateral_image_vs_sim_rms_m", "tip_lateral_strain_vs_sim_rms_m"):
+    for key in (
+        "tip_lateral_image_vs_sim_rms_m",
+        "tip_lateral_strain_vs_sim_rms_m",
+        "image_tip_lateral_sd_rms_m",
+        "sim_tip_error_estimate_m",
+    ):
         v = float(ds.attrs.get(key, np.nan))
         print(f"  {key}: {v * 1e3:.3f} mm")
     return 0

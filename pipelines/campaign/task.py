@@ -61,12 +61,7 @@ def failed_row(spec: RunSpec, error: str) -> dict[str, Any]:
 def process_task(spec: RunSpec) -> dict[str, Any]:
     """Process ``spec``'s log, write its results file, return its catalogue row."""
     from pipelines.blas_threads import limit_blas_threads
-    from pipelines.process.run import (
-        MAX_TIP_UNCERTAINTY_M,
-        SIM_TOL,
-        process_run,
-        write_processed,
-    )
+    from pipelines.process.run import MAX_TIP_UNCERTAINTY_M, process_run, write_processed
     from pipelines.rig import load_rig
 
     limit_blas_threads()
@@ -87,7 +82,7 @@ def process_task(spec: RunSpec) -> dict[str, Any]:
                 rig=rig,
                 calibration_path=Path(opts.calibration_path) if opts.calibration_path else None,
                 model=opts.model,
-                sim_tol=SIM_TOL if opts.sim_tol is None else opts.sim_tol,
+                sim_tol=opts.sim_tol,
                 workers=1,
                 damping_law=opts.damping_law,
                 max_tip_uncertainty_m=MAX_TIP_UNCERTAINTY_M

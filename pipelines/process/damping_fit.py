@@ -65,6 +65,7 @@ from pipelines.rig import Rig
 from sim.beam import BeamProperties
 from sim.drives import TraceDrive
 from sim.result import SimResult
+from sim.trace_fit import FittedTraceDrive
 
 log = logging.getLogger(__name__)
 
@@ -256,7 +257,7 @@ class _RunSimulator:
     rig: Rig
     law: str
     t_s: FloatArray
-    drive: TraceDrive
+    drive: TraceDrive | FittedTraceDrive
 
     def _until(self, end_s: float | None) -> FloatArray:
         if end_s is None:
@@ -364,7 +365,7 @@ def fit_damping(
     t_sim = t[: min(n_sim, t.size)]
     good = np.isfinite(rocker)
 
-    sims = _RunSimulator(rig, law, t_sim, TraceDrive(t[good], rocker[good]))
+    sims = _RunSimulator(rig, law, t_sim, FittedTraceDrive(t[good], rocker[good]))
     run, run_exact = sims.cheap, sims.exact
 
     meas = measure(t, eps, ft, tip, windows)

@@ -310,6 +310,53 @@ def _fitted_damping_lines(a: Mapping[str, object]) -> list[str]:
     ]
 
 
+def _model_error_lines(a: Mapping[str, object], errors: Mapping[str, Any]) -> list[str]:
+    """The image - simulation comparison beside the simulation's own estimated error and the
+    image's stated uncertainty (attributes sim_tip_error_estimate_m, ..., written by
+    ``process`` since issue 15; nothing for an older results file)."""
+    if "sim_tip_error_estimate_m" not in a:
+        return []
+
+    def v(key: str) -> float:
+        try:
+            return float(a.get(key, math.nan))  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            return math.nan
+
+    rms = float(errors["tip_lateral_image_vs_sim_rms_m"])
+    est = v("sim_tip_error_estimate_m")
+    sd = v("image_tip_lateral_sd_rms_m")
+    # the simulation's error taken out in quadrature (its estimate is a bound on the max)
+    without = math.sqrt(max(rms**2 - est**2, 0.0)) if math.isfinite(est) else math.nan
+    drive = v("sim_drive_tip_uncertainty_m")
+    parts = [x for x in (sd, est, drive) if math.isfinite(x)]
+    expected = math.sqrt(sum(x * x for x in parts)) if parts else math.nan
+    return [
+        "## Image against simulation, and the simulation's own error",
+        "",
+        f"Simulation tolerance: {a.get('sim_tol_rule', '?')} (asked of the model: relative "
+        f"{format_value(v('sim_tol'))}, i.e. {format_value(v('sim_tip_tol_m'), 1e3)} mm"
+        f"{'; simulated again after the frames' if v('sim_resimulated') == 1 else ''}).",
+        "",
+        "| tip lateral | mm |",
+        "|---|---:|",
+        f"| image - sim, RMS | {format_value(rms, 1e3)} |",
+        f"| simulation's estimated error (its model, max over the run) | "
+        f"{format_value(est, 1e3)} |",
+        f"| image - sim, RMS, the simulation's error taken out | {format_value(without, 1e3)} |",
+        f"| simulation's uncertainty from the measured hub angle (fitted drive), RMS | "
+        f"{format_value(drive, 1e3)} |",
+        f"| image's stated uncertainty, RMS over the frames | {format_value(sd, 1e3)} |",
+        f"| expected image - sim RMS from these three alone | {format_value(expected, 1e3)} |",
+        "",
+        "The image's stated uncertainty is its edge fits' noise (calibration errors are not "
+        "in it). The model's estimate is its numerical error; the drive's is the "
+        "potentiometer's noise left in the fitted hub angle (`sim_drive`), carried through "
+        "the linear beam.",
+        "",
+    ]
+
+
 def write_report(
     ds: xr.Dataset,
     out_dir: str | os.PathLike[str],
@@ -370,6 +417,7 @@ def write_report(
         "",
         *error_table(errors),
         "",
+        *_model_error_lines(a, errors),
         "## Plots",
         "",
         f"![strains measured and simulated]({PLOTS['strains']})",

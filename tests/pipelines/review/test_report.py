@@ -100,6 +100,42 @@ def test_report_has_its_files_valid_pngs_and_the_error_numbers(
     assert float(table["strain g1, measured - sim, RMS"][0]) == pytest.approx(4.0, rel=0.1)
 
 
+def test_report_puts_the_simulation_error_beside_the_image_comparison(tmp_path: Path) -> None:
+    ds = _results(failed=())
+    md_old = write_report(ds, tmp_path / "old", title="old").read_text("utf-8")
+    assert "simulation's own error" not in md_old  # a results file from before issue 15
+    sd_m, est_m = 0.4e-3, 0.3e-3
+    ds.attrs.update(
+        sim_tol_rule="a fifth of the image's RMS tip uncertainty",
+        sim_tol=4e-3,
+        sim_tip_tol_m=0.08e-3,
+        image_tip_lateral_sd_rms_m=sd_m,
+        sim_tip_error_estimate_m=est_m,
+        sim_resimulated=1,
+        sim_drive_tip_uncertainty_m=0.12e-3,
+    )
+    md = write_report(ds, tmp_path / "new", title="new").read_text("utf-8")
+    rows = {}
+    for line in md.split("simulation's own error", 1)[1].splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("|") and len(cells) == 2:
+            rows[cells[0]] = cells[1]
+    rms_m = summarise_errors(ds)["tip_lateral_image_vs_sim_rms_m"]  # ~0.5 mm of noise
+    assert float(rows["image - sim, RMS"]) == pytest.approx(1e3 * rms_m, rel=5e-4)
+    assert float(rows["simulation's estimated error (its model, max over the run)"]) == 0.3
+    assert float(rows["image - sim, RMS, the simulation's error taken out"]) == pytest.approx(
+        1e3 * np.sqrt(rms_m**2 - est_m**2), rel=5e-4
+    )
+    assert float(rows["expected image - sim RMS from these three alone"]) == pytest.approx(
+        0.5142, abs=1e-4
+    )
+    assert (
+        float(rows["simulation's uncertainty from the measured hub angle (fitted drive), RMS"])
+        == 0.12
+    )
+    assert "simulated again after the frames" in md
+
+
 def test_report_rewrites_a_folder_without_leaving_temp_files(tmp_path: Path) -> None:
     ds = _results(failed=())
     write_report(ds, tmp_path, title="one")

@@ -1,0 +1,164 @@
+"""FittedTraceDrive: a potentiometer trace as a smooth drive, against the analytic four-bar.
+
+The trace is made the way the bench makes it, but not with beambench's defaults: a
+four-bar of other proportions at another crank speed, its angle sampled at 2 kHz with
+white noise, the anti-alias Butterworth and the decimation to 400 Hz of ``daq.antialias``
+(with its group-delay correction). The errors are predicted from that physics: the
+noise a least-squares harmonic fit passes, the harmonics it leaves out, the filter's own
+distortion of the harmonics it keeps.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from daq.antialias import AntiAliasDecimator, design_antialias
+from daq.config import DaqConfig
+from sim.drives import Drive, FourBarDrive, SinusoidDrive, TraceDrive
+from sim.errors import SimInputError
+from sim.four_bar import FourBar
+from sim.trace_fit import FittedTraceDrive
+
+FS_ACQ_HZ = 2000.0
+NOISE_RAD = 6e-4  # at 2 kHz, before the filter (the bench's pot: 0.5 mV ~ 5.9e-4 rad)
+CRANK_HZ = 0.81
+FOUR_BAR = FourBar(0.35, 0.05, 0.335, 0.07)  # not the bench's 0.34/0.045/0.33/0.065
+
+
+def _measured(
+    duration_s: float, seed: int, angle_of_t: object = None
+) -> tuple[np.ndarray, np.ndarray, FourBarDrive, float]:
+    """400 Hz samples of the four-bar angle as the DAQ delivers them, the true drive on
+    the output clock, and the group delay the DAQ removed."""
+    true = FourBarDrive(FOUR_BAR, 2 * math.pi * CRANK_HZ, about="absolute", crank_phase_rad=1.1)
+    design = design_antialias(DaqConfig(), FS_ACQ_HZ)
+    n = round((duration_s + 0.5) * FS_ACQ_HZ)
+    t_acq = np.arange(n) / FS_ACQ_HZ
+    rng = np.random.default_rng(seed)
+    clean = true.angle(t_acq) if angle_of_t is None else angle_of_t(t_acq)  # type: ignore[operator]
+    volts = (clean + rng.normal(0.0, NOISE_RAD, n))[:, None]
+    out = AntiAliasDecimator(design, 1).process(np.round(t_acq * 1e9).astype(np.int64), volts, 0)
+    return out.t_ns * 1e-9, out.volts[:, 0], true, design
+
+
+def _harmonics(n_harm: int) -> np.ndarray:
+    """Amplitudes (rad) of the four-bar angle's harmonics 1..n_harm (exact, by FFT of the
+    closed form over one crank turn)."""
+    psi = np.linspace(0.0, 2 * math.pi, 4096, endpoint=False)
+    spec = np.fft.rfft(FOUR_BAR.rocker_angle_rad(psi)) / 2048
+    return np.abs(spec[1 : n_harm + 1])
+
+
+def _predicted_rms(order: int, kept: int, span_s: float, design: object) -> float:
+    """RMS error of the ``order``-th derivative of a least-squares fit of ``kept``
+    harmonics: the noise it passes (per coefficient variance S / T with S the noise's
+    one-sided PSD), the harmonics beyond ``kept``, the anti-alias filter's gain and
+    residual phase at the kept ones (its group delay at 1 Hz is removed by the DAQ)."""
+    w = 2 * math.pi * CRANK_HZ
+    m = np.arange(1, 61)
+    amp = _harmonics(60)
+    psd = NOISE_RAD**2 / (FS_ACQ_HZ / 2)
+    f = m * CRANK_HZ
+    _, h = signal.sosfreqz(design.sos, worN=f, fs=FS_ACQ_HZ)  # type: ignore[attr-defined]
+    h = h * np.exp(2j * math.pi * f * design.group_delay_s)  # type: ignore[attr-defined]
+    weight = (m * w) ** (2 * order)
+    noise = np.sum(weight[:kept] * psd / span_s)
+    truncation = np.sum(weight[kept:] * amp[kept:] ** 2 / 2)
+    filt = np.sum(weight[:kept] * amp[:kept] ** 2 * np.abs(h[:kept] - 1) ** 2 / 2)
+    return math.sqrt(noise + truncation + filt)
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2)))
+
+
+def test_fitted_drive_errors_on_a_filtered_noisy_four_bar_trace() -> None:
+    t, y, true, design = _measured(20.0, seed=11)
+    d = FittedTraceDrive(t, y)
+    assert isinstance(d, Drive)
+    s = d.settings
+    assert s["kind"] == "harmonics"  # a periodic run: GCV wants no spline on top
+    assert s["fundamental_hz"] == pytest.approx(CRANK_HZ, rel=1e-6)
+    # the residual is the noise after the filter: white PSD over its ~150 Hz pass band
+    # (the Butterworth's equivalent noise bandwidth, from its own response)
+    ff, hh = signal.sosfreqz(design.sos, worN=20000, fs=FS_ACQ_HZ)
+    enbw_hz = float(np.trapezoid(np.abs(hh) ** 2, ff))
+    sigma_out = NOISE_RAD * math.sqrt(enbw_hz / (FS_ACQ_HZ / 2))
+    assert s["residual_rms_rad"] == pytest.approx(sigma_out, rel=0.05)
+    kept = int(s["harmonics"])
+    span = float(t[-1] - t[0])
+    # each harmonic coefficient's noise variance: the in-band PSD (white before the filter,
+    # which is flat below 40 Hz) over the span; Welch over ~19 segments resolves it to ~5 %
+    found = d.harmonic_uncertainty()
+    assert found is not None and found[1] == kept
+    assert found[2] == pytest.approx(NOISE_RAD**2 / (FS_ACQ_HZ / 2) / span, rel=0.1)
+    inside = (t > t[0] + 0.25) & (t < t[-1] - 0.25)
+    ends = ~inside
+    for order, name in enumerate(("angle", "rate", "accel")):
+        err = getattr(d, name)(t) - getattr(true, name)(t)
+        bound = _predicted_rms(order, kept, span, design)
+        # RMS of a few weighted Gaussian coefficients (dominated by the top harmonics):
+        # within twice its expectation with ~99.7 % probability; the ends are no worse
+        # (a harmonic fit has no end conditions)
+        assert _rms(err[inside]) < 2.0 * bound, (name, _rms(err[inside]), bound)
+        assert _rms(err[ends]) < 2.0 * bound, (name, _rms(err[ends]), bound)
+
+
+def test_fitted_drive_beats_the_smoothing_spline_it_replaces() -> None:
+    t, y, true, _ = _measured(8.0, seed=12)
+    fitted = FittedTraceDrive(t, y)
+    spline = TraceDrive(t, y)
+    inside = (t > t[0] + 0.5) & (t < t[-1] - 0.5)
+    for name in ("rate", "accel"):
+        e_fit = _rms((getattr(fitted, name)(t) - getattr(true, name)(t))[inside])
+        e_spl = _rms((getattr(spline, name)(t) - getattr(true, name)(t))[inside])
+        assert e_fit < e_spl, name
+
+
+def test_a_trace_that_does_not_repeat_gets_a_spline() -> None:
+    # the crank speeding up by 30 % over the run: not one fundamental frequency
+    w0 = 2 * math.pi * CRANK_HZ
+    duration = 10.0
+
+    def phase(t: np.ndarray) -> np.ndarray:
+        return w0 * (t + 0.15 * t**2 / duration)
+
+    def angle(t: np.ndarray) -> np.ndarray:
+        return 0.7 * np.sin(phase(np.asarray(t, float)))
+
+    t, y, _, _ = _measured(duration, seed=13, angle_of_t=angle)
+    d = FittedTraceDrive(t, y)
+    assert d.settings["kind"] in ("spline", "harmonics+spline")
+    h = 1e-4
+    inside = (t > t[0] + 0.5) & (t < t[-1] - 0.5)
+    tt = t[inside]
+    acc_true = (angle(tt + h) - 2 * angle(tt) + angle(tt - h)) / h**2
+    spline = TraceDrive(t, y)
+    e_fit = _rms(d.accel(tt) - acc_true)
+    assert e_fit < _rms(spline.accel(tt) - acc_true)
+    # the fit's own consistency: rate and accel are its derivatives
+    g = 1e-5
+    mid = tt[::50]
+    assert d.rate(mid) == pytest.approx((d.angle(mid + g) - d.angle(mid - g)) / (2 * g), abs=1e-6)
+    assert d.accel(mid) == pytest.approx((d.rate(mid + g) - d.rate(mid - g)) / (2 * g), abs=1e-4)
+
+
+def test_fitted_drive_bridges_a_gap_and_refuses_what_it_cannot_fit() -> None:
+    rng = np.random.default_rng(14)
+    t = np.arange(0.0, 6.0, 1.0 / 400.0)
+    true = SinusoidDrive(0.7669, 4.970)
+    y = true.angle(t) + rng.normal(0.0, 2e-4, t.size)
+    y[800:860] = np.nan  # 0.15 s lost
+    d = FittedTraceDrive(t, y)
+    gap = t[800:860]
+    assert np.abs(d.accel(gap) - true.accel(gap)).max() < 0.01 * 0.7669 * 4.970**2
+    with pytest.raises(SimInputError, match="t_s must lie within"):
+        d.angle(7.0)
+    with pytest.raises(SimInputError, match="finite samples"):
+        FittedTraceDrive(t[:5], y[:5])
+    with pytest.raises(SimInputError, match="length of t_s"):
+        FittedTraceDrive(t, y[:-1])
