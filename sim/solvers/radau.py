@@ -31,13 +31,16 @@ answer.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack, lu_factor, lu_solve
+from threadpoolctl import ThreadpoolController
 
 from sim.errors import IntegrationError, SimInputError
 from sim.solvers.radau_iia import MU_COMPLEX, MU_REAL, TI, TI_COMPLEX, TI_REAL, A, C, E, P, T
@@ -96,6 +99,36 @@ def _lu_solve(lu: tuple[FloatArray, NDArray[np.int32]], b: FloatArray) -> FloatA
     return np.asarray(x)
 
 
+_BLAS: list[ThreadpoolController] = []  # made on first use (it inspects the loaded libraries)
+
+
+def _one_blas_thread() -> Any:
+    """A context with every loaded BLAS on one thread. The Newton matrices are small
+    (3n = 144 for six elements), and OpenBLAS factors them with its thread pool from
+    about that size on; its threads busy-wait for each other, so with any other job on
+    the second core a 144 x 144 LU took 27 ms instead of 0.2 ms: the six-element spin-up
+    and reciprocating runs went from 0.6 s to 10-23 s whenever the caller (a test, a
+    notebook) had not limited the pool as the command line does. Five elements
+    (3n = 120) stayed on one thread, hence the jump from five to six."""
+    if not _BLAS:
+        _BLAS.append(ThreadpoolController())
+    return _BLAS[0].limit(limits=1, user_api="blas")
+
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _on_one_blas_thread(fn: Callable[_P, _R]) -> Callable[_P, _R]:
+    @functools.wraps(fn)
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with _one_blas_thread():
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@_on_one_blas_thread
 def radau5(
     rhs_stages: RhsStages,
     jac: Jacobian,

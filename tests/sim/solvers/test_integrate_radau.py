@@ -93,3 +93,24 @@ def test_predicted_stage_jacobians_need_about_one_evaluation_per_step() -> None:
     )  # fmt: skip
     jac_per_step = res.settings["n_jac"] / 3 / res.settings["n_steps"]
     assert jac_per_step < 1.4
+
+
+def test_blas_runs_on_one_thread_during_the_integration_and_is_restored() -> None:
+    """OpenBLAS factors the 3n x 3n Newton matrix with its busy-waiting thread pool from
+    about 3n = 144 (six elements) on, which made a six-element run 10-40x slower whenever
+    another job held the second core; radau5 therefore holds BLAS to one thread itself
+    (whatever the caller set) and gives the caller's setting back afterwards."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    seen: list[int] = []
+
+    def rhs(ts: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        seen.extend(p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas")
+        return _pr_rhs(ts, ys)
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+        radau5(rhs, _pr_jac, np.linspace(0.0, 0.5, 6), np.array([1.0, 0.0]), rtol=1e-6, atol=1e-9)
+        after = [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+    assert seen and set(seen) == {1}
+    assert after == before
