@@ -252,7 +252,7 @@ def radau5(
             else:
                 # extrapolate the last collocation polynomial to the new stages
                 x = (h * C + h_prev) / h_prev
-                z = (q_prev @ np.vstack([x, x * x, x**3])).T + (y_prev - y)[None, :]
+                z = (q_prev @ np.array([x, x * x, x * x * x])).T + (y_prev - y)[None, :]
             scale = atol + np.abs(y) * rtol
             if not full:
                 converged, n_iter, z, _rate = _newton(
@@ -464,7 +464,8 @@ class _ErrorFilter:
         self.m = n // 2 if second_order else 0
         if second_order:
             m = self.m
-            self.shifted_kv = gamma * np.eye(m) - jac[m:, m:]
+            self.shifted_kv = -jac[m:, m:]
+            self.shifted_kv.flat[:: m + 1] += gamma
             self.lu = _lu(gamma * self.shifted_kv - jac[m:, :m])
         else:
             self.lu = _lu(gamma * np.eye(n) - jac)
@@ -484,6 +485,7 @@ def _filter(lu: _ErrorFilter | tuple[FloatArray, NDArray[np.int32]], b: FloatArr
 
 #: ``A_ij A_jk`` as [i, k, j]: the displacement part of the reduced Newton matrix
 _AA = np.einsum("ij,jk->ikj", A, A)
+_AA_FLAT = _AA.reshape(9, 3)
 
 
 def _newton_second_order(
@@ -531,9 +533,10 @@ def _newton_second_order(
                 return False, k + 1, z, js, f
             kd = js[:, m:, :m]
             kv = js[:, m:, m:]
-            blocks = -hh * np.einsum("ikj,jab->iakb", _AA, kd)
-            blocks -= h * (A[:, None, :, None] * kv.transpose(1, 0, 2)[None, :, :, :])
-            lu = _lu(eye + blocks.reshape(3 * m, 3 * m))
+            # (A x I) diag(Kd) (A x I) as one product: [(i, k), j] @ [j, (a, b)]
+            disp = (_AA_FLAT @ kd.reshape(3, m * m)).reshape(3, 3, m, m)
+            blocks = hh * disp + h * (A[:, :, None, None] * kv[None, :, :, :])
+            lu = _lu(eye - blocks.transpose(0, 2, 1, 3).reshape(3 * m, 3 * m))
             jac_k = k
             dz_norm_old = None
         else:
@@ -573,5 +576,4 @@ def _predict_factor(h: float, h_old: float | None, err: float, err_old: float | 
         multiplier = 1.0
     else:
         multiplier = h / h_old * (err_old / err) ** 0.25
-    with np.errstate(divide="ignore"):
-        return float(min(1.0, multiplier) * err**-0.25) if err > 0 else MAX_FACTOR
+    return min(1.0, multiplier) * err**-0.25 if err > 0 else MAX_FACTOR
