@@ -103,6 +103,8 @@ _SAMPLE_FORMAT = (
     '"strain":[%r,%r,%r,%r],"raw_volts":[%r,%r,%r,%r,%r],'
     '"strain_g1":%r,"strain_g2":%r,"strain_g3":%r,"strain_g4":%r'
 )
+# the values already as text (repr, or null when not finite)
+_SAMPLE_TEXT = _SAMPLE_FORMAT.replace("%r", "%s")
 _HEADER_FORMAT = ',"header":{"stamp":{"sec":%d,"nsec":%d},"frame_id":"daq"}}'
 _NO_HEADER = "}"
 
@@ -154,31 +156,29 @@ def encode_samples(
     own field (``strain_g1`` ...), and with ``utc_zero_ns`` (the UTC time of run-clock
     zero, ns since the epoch) the sample's UTC time is in ``header.stamp``."""
     sec, nsec = np.divmod(t_ns, 1_000_000_000)
-    rows = np.column_stack([angle, strain, volts, strain])
-    if utc_zero_ns is None:
-        tails = [_NO_HEADER] * len(t_ns)
+    # each value's text once (the four strains appear twice in a message), by C-level map
+    values = np.column_stack([angle, strain, volts])  # (n, 10)
+    flat = values.ravel().tolist()
+    if np.isfinite(values).all():
+        text = list(map(repr, flat))
     else:
-        usec, unsec = np.divmod(np.asarray(t_ns, np.int64) + np.int64(utc_zero_ns), 1_000_000_000)
-        tails = [
-            _HEADER_FORMAT % (a, b) for a, b in zip(usec.tolist(), unsec.tolist(), strict=True)
-        ]
-    fmt = _SAMPLE_FORMAT
-    if np.isfinite(rows).all():
+        text = [repr(x) if math.isfinite(x) else "null" for x in flat]
+    k = values.shape[1]
+    rows = [text[i : i + k] for i in range(0, len(text), k)]
+    if utc_zero_ns is None:
+        fmt = _SAMPLE_TEXT + _NO_HEADER
         return [
-            (fmt % (s, ns, *r) + tail).encode()
-            for s, ns, r, tail in zip(
-                sec.tolist(), nsec.tolist(), rows.tolist(), tails, strict=True
-            )
+            (fmt % (s, ns, *r, *r[1:5])).encode()
+            for s, ns, r in zip(sec.tolist(), nsec.tolist(), rows, strict=True)
         ]
-    out = []
-    for s, ns, r, tail in zip(sec.tolist(), nsec.tolist(), rows.tolist(), tails, strict=True):
-        text = fmt.replace("%r", "%s") % (
-            s,
-            ns,
-            *(repr(x) if math.isfinite(x) else "null" for x in r),
+    usec, unsec = np.divmod(np.asarray(t_ns, np.int64) + np.int64(utc_zero_ns), 1_000_000_000)
+    fmt = _SAMPLE_TEXT + _HEADER_FORMAT
+    return [
+        (fmt % (s, ns, *r, *r[1:5], us, uns)).encode()
+        for s, ns, r, us, uns in zip(
+            sec.tolist(), nsec.tolist(), rows, usec.tolist(), unsec.tolist(), strict=True
         )
-        out.append((text + tail).encode())
-    return out
+    ]
 
 
 # Bounds of a plausible /daq/samples value, beyond any bench (not a tolerance): a

@@ -3,10 +3,13 @@
 For each scene a converged reference is computed here, in the same process: the exact
 finite elements (``fe-corot``) with more elements and a tight integrator tolerance than any
 candidate; it is checked by a second reference at a 30x looser tolerance (their difference
-is printed as the reference's own error). The table gives, per model and setting, the wall
-time of the solve per simulated second and the maximum tip-lateral error over the last three
-drive cycles (reciprocating) or the whole run (spin-up), absolute and relative to the
-largest reference tip deflection in that window.
+is printed as the reference's own error). The undamped spin-ups' references are
+Richardson extrapolations of radau5 runs on 24 and 32 elements (the tip converges as
+h^4: measured on 6 to 40 elements), whose own spatial error is estimated from the
+extrapolation of 16 and 24 elements and printed below the table. The table gives, per
+model and setting, the wall time of the solve per simulated second and the maximum
+tip-lateral error over the last three drive cycles (reciprocating) or the whole run
+(spin-up), absolute and relative to the largest reference tip deflection in that window.
 
 If Exudyn is installed (the ``peers`` extra), its ANCF cable (:mod:`pipelines.bench.peers_exudyn`)
 runs on the same scenes in the same process. Its damping is strain-rate (Kelvin-Voigt)
@@ -18,6 +21,7 @@ the gap between the two laws is printed below the table.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Callable
@@ -144,10 +148,89 @@ def _candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult
     return out
 
 
+def _spin_candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult]]]:
+    """Finer rows for the undamped spin-ups only (their extrapolated references resolve
+    errors down to ~1e-7; the damped scene's 12-element reference would not)."""
+    if quick:
+        return []
+
+    def fe(n: int, rtol: float) -> Callable[[Scene], SimResult]:
+        return lambda s: simulate_fe(
+            s.beam, s.drive, s.t_s, n_elements=n, rtol=rtol, atol=rtol, method="radau5"
+        )
+
+    return [
+        ("fe-corot radau5", "12 elements, rtol 1e-6", fe(12, 1e-6)),
+        ("fe-corot radau5", "16 elements, rtol 1e-7", fe(16, 1e-7)),
+        ("fe-corot radau5", "24 elements, rtol 1e-7", fe(24, 1e-7)),
+    ]
+
+
 def _reference_elements(scene: Scene, quick: bool) -> int:
     # damped full run: 12 elements, so that the 8-element row can show 1e-6 (the pair gives
     # the reference's own spatial error by Richardson, displacements converging as h^4)
     return 4 if quick else (12 if scene.damping[1] > 0.0 else 6)
+
+
+#: meshes of the spin-up references (coarse, middle, fine): the fine pair is extrapolated,
+#: the coarse pair's extrapolation estimates its error
+_SPIN_MESHES = (16, 24, 32)
+_SPIN_MESHES_QUICK = (4, 6, 8)
+#: the tip's order of convergence in the element length (cubic Hermite elements):
+#: measured on the 10 rad/s spin-up at rtol 1e-9, the 6 to 40-element runs' differences
+#: fall as h^4 (the 6, 8, 12, 16, 24 and 32-element runs are 2.2e-4, 7.2e-5, 1.5e-5,
+#: 5.2e-6, 1.2e-6 and 4.2e-7 of the tip from the 32/40 extrapolation; the 16/24 and 24/32
+#: extrapolations differ by 1.5e-7, the 24/32 and 32/40 by 6e-8)
+_SPATIAL_ORDER = 4.0
+
+
+def _extrapolate(coarse: SimResult, fine: SimResult) -> np.ndarray:
+    """Richardson: the tip history with the h^p term of two meshes cancelled."""
+    ratio = (fine.settings["n_elements"] / coarse.settings["n_elements"]) ** _SPATIAL_ORDER
+    return fine.tip_lateral_m + (fine.tip_lateral_m - coarse.tip_lateral_m) / (ratio - 1.0)
+
+
+def _spin_reference(
+    scene: Scene, quick: bool, rtol: float
+) -> tuple[SimResult, SimResult, list[str]]:
+    """An undamped spin-up's reference, its 30x-looser-tolerance check and notes.
+
+    radau5 (rtol = atol) on three meshes; the reference is the Richardson extrapolation
+    of the two finest (its ``settings['n_elements']`` is the finest). Its spatial error
+    is estimated by the difference from the extrapolation of the two coarser meshes
+    (an overestimate: that one's error is the larger); the check repeats the middle mesh
+    at a 30x looser tolerance and adds its change to the reference, so their difference
+    is the time integration's share (6 elements at rtol 1e-9 are 1.4e-9 of the tip from
+    1e-10)."""
+    meshes = _SPIN_MESHES_QUICK if quick else _SPIN_MESHES
+
+    def run(n: int, tol: float) -> SimResult:
+        return simulate_fe(
+            scene.beam, scene.drive, scene.t_s, n_elements=n, rtol=tol, atol=tol,
+            method="radau5",
+        )  # fmt: skip
+
+    c, m, f = (run(n, rtol) for n in meshes)
+    ref_tip = _extrapolate(m, f)
+    ref = dataclasses.replace(
+        f,
+        tip_lateral_m=ref_tip,
+        wall_time_s=c.wall_time_s + m.wall_time_s + f.wall_time_s,
+        settings={**f.settings, "richardson_meshes": f"{meshes[1]}/{meshes[2]}"},
+    )
+    loose = run(meshes[1], 30.0 * rtol)
+    check = dataclasses.replace(f, tip_lateral_m=ref_tip + (loose.tip_lateral_m - m.tip_lateral_m))
+    w = scene.window
+    scale = float(np.max(np.abs(ref_tip[w])))
+    spatial = float(np.max(np.abs(ref_tip[w] - _extrapolate(c, m)[w]))) / scale
+    fine_alone = float(np.max(np.abs(ref_tip[w] - f.tip_lateral_m[w]))) / scale
+    notes = [
+        f"reference ({scene.name}): Richardson (h^{_SPATIAL_ORDER:g}) of {meshes[1]} and "
+        f"{meshes[2]} elements, radau5 rtol = atol {rtol:g}; its spatial error by the "
+        f"{meshes[0]}/{meshes[1]} extrapolation: {spatial:.1e} (the {meshes[2]}-element run "
+        f"alone is {fine_alone:.1e} from it)"
+    ]
+    return ref, check, notes
 
 
 def _reference(scene: Scene, quick: bool, rtol: float, n: int | None = None) -> SimResult:
@@ -171,7 +254,7 @@ def _exudyn_settings(scene: Scene, quick: bool) -> list[tuple[int, float]]:
             if quick
             else [(2, 0.005), (2, 0.0025), (4, 0.0025), (4, 0.001), (8, 0.0005)]
         )
-    return [(4, 0.01)] if quick else [(4, 0.01), (8, 0.005), (16, 0.0025)]
+    return [(4, 0.01)] if quick else [(4, 0.01), (8, 0.005), (16, 0.0025), (32, 0.00125)]
 
 
 def _exudyn_rows(
@@ -225,25 +308,36 @@ def table_with_notes(quick: bool) -> tuple[list[Row], dict[str, float], list[str
     notes: list[str] = []
     scenes = _scenes(quick)
     candidates = _candidates(quick)
-    bar = Progress("bench sim", total=len(scenes) * (len(candidates) + 2))
+    spin_only = _spin_candidates(quick)
+    n_spin = sum(s.damping[1] == 0.0 for s in scenes)
+    bar = Progress("bench sim", total=len(scenes) * (len(candidates) + 2) + n_spin * len(spin_only))
     for scene in scenes:
-        # undamped spin-up: Radau must follow the stiff axial modes at tight tolerances,
-        # so its reference is looser (and checked like the others)
+        # undamped spin-up: radau5 on three meshes, extrapolated (6 elements at rtol 1e-7
+        # had left ~2e-4 of spatial error at 10 rad/s, hiding every error below it)
         spin = scene.damping[1] == 0.0
         # damped: rtol 1e-10, since at 1e-9 the 12-element reference is itself 1.3e-6 off
         # (measured against 1e-10), too much for the 1e-6 row (1e-10 costs ~3 s per sim s)
-        rtol_ref = 1e-7 if spin else 1e-10
-        ref = _reference(scene, quick, rtol_ref)
-        bar.update(1)
-        check = _reference(scene, quick, rtol_ref * 30.0)
-        bar.update(1)
+        rtol_ref = 1e-9 if spin else 1e-10
+        if spin:
+            ref, check, spin_notes = _spin_reference(scene, quick, rtol_ref)
+            notes += spin_notes
+            bar.update(2)
+        else:
+            ref = _reference(scene, quick, rtol_ref)
+            bar.update(1)
+            check = _reference(scene, quick, rtol_ref * 30.0)
+            bar.update(1)
         ref_err[scene.name] = _error(check, ref, scene.window)[1]
         duration = float(scene.t_s[-1] - scene.t_s[0])
-        rows.append(
-            Row(scene.name, "reference fe-corot", f"{ref.settings['n_elements']} elements, "
-                f"rtol {rtol_ref:g}", ref.wall_time_s / duration, 0.0, 0.0)
+        label = (
+            f"Richardson {ref.settings['richardson_meshes']} el." if spin
+            else f"{ref.settings['n_elements']} elements"
         )  # fmt: skip
-        for model, setting, run_model in candidates:
+        rows.append(
+            Row(scene.name, "reference fe-corot", f"{label}, rtol {rtol_ref:g}",
+                ref.wall_time_s / duration, 0.0, 0.0)
+        )  # fmt: skip
+        for model, setting, run_model in candidates + (spin_only if spin else []):
             bar.update(1)
             res = run_model(scene)
             err, rel = _error(res, ref, scene.window)
@@ -266,13 +360,13 @@ def run(quick: bool) -> int:
     from pipelines.bench.peers_exudyn import available
 
     rows, ref_err, notes = table_with_notes(quick)
-    print("scene                 | model              | setting                | s per sim s "
-          "| max tip error (m) | relative | vs Eq. 28")  # fmt: skip
-    print("-" * 115)
+    print("scene                 | model              | setting                        | "
+          "s per sim s | max tip error (m) | relative | vs Eq. 28")  # fmt: skip
+    print("-" * 123)
     for r in rows:
         eq28 = f"{r.rel_error_eq28:.2e}" if math.isfinite(r.rel_error_eq28) else ""
         print(
-            f"{r.scene:21s} | {r.model:18s} | {r.setting:22s} | {r.wall_per_sim_s:11.4f} | "
+            f"{r.scene:21s} | {r.model:18s} | {r.setting:30s} | {r.wall_per_sim_s:11.4f} | "
             f"{r.max_error_m:17.3e} | {r.rel_error:.2e} | {eq28}"
         )
     for name, e in ref_err.items():

@@ -49,6 +49,7 @@ def integrate(
     rhs_stages: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
     jac_stages: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
     rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None = None,
+    second_order: bool = False,
 ) -> Trajectory:
     """Integrate ``dy/dt = rhs(t, y)`` from ``t_eval_s[0]`` and return ``y`` at ``t_eval_s``.
 
@@ -67,6 +68,8 @@ def integrate(
         the full Newton iteration (see :func:`sim.solvers.radau.radau5`).
     rhs_jac_stages : ``(rhs_stages, jac_stages)`` at the same points in one call; used by
         "radau5" in place of the two where both are needed.
+    second_order : ``y = [d, v]`` with ``d' = v``: "radau5" then solves Newton for the rates
+        alone (:func:`sim.solvers.radau.radau5`); ignored by the other methods.
 
     Raises
     ------
@@ -81,8 +84,9 @@ def integrate(
         return Trajectory(y_start[None, :].copy(), 0.0, 0, 0, 0)
     if method == "radau5":
         return _radau5(
-            rhs, jac, t, y_start, rtol, atol, first_step_s, rhs_stages, jac_stages, rhs_jac_stages
-        )
+            rhs, jac, t, y_start, rtol, atol, first_step_s, rhs_stages, jac_stages,
+            rhs_jac_stages, second_order,
+        )  # fmt: skip
     kwargs: dict[str, object] = {"rtol": rtol, "atol": atol, "t_eval": t}
     kwargs["jac"] = jac
     if first_step_s is not None:
@@ -124,6 +128,7 @@ def _radau5(
     rhs_stages: Callable[[FloatArray, FloatArray], FloatArray] | None,
     jac_stages: Callable[[FloatArray, FloatArray], FloatArray] | None,
     rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None,
+    second_order: bool,
 ) -> Trajectory:
     def pointwise(ts: FloatArray, ys: FloatArray) -> FloatArray:
         return np.stack([rhs(float(tk), yk) for tk, yk in zip(ts, ys, strict=True)])
@@ -138,5 +143,6 @@ def _radau5(
         first_step_s=first_step_s,
         jac_stages=jac_stages,
         rhs_jac_stages=rhs_jac_stages,
+        second_order=second_order,
     )
     return Trajectory(y, wall, stats.n_rhs, stats.n_jac, stats.n_lu, stats.n_steps)

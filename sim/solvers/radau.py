@@ -31,13 +31,16 @@ answer.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack, lu_factor, lu_solve
+from threadpoolctl import ThreadpoolController
 
 from sim.errors import IntegrationError, SimInputError
 from sim.solvers.radau_iia import MU_COMPLEX, MU_REAL, TI, TI_COMPLEX, TI_REAL, A, C, E, P, T
@@ -96,6 +99,36 @@ def _lu_solve(lu: tuple[FloatArray, NDArray[np.int32]], b: FloatArray) -> FloatA
     return np.asarray(x)
 
 
+_BLAS: list[ThreadpoolController] = []  # made on first use (it inspects the loaded libraries)
+
+
+def _one_blas_thread() -> Any:
+    """A context with every loaded BLAS on one thread. The Newton matrices are small
+    (3n = 144 for six elements), and OpenBLAS factors them with its thread pool from
+    about that size on; its threads busy-wait for each other, so with any other job on
+    the second core a 144 x 144 LU took 27 ms instead of 0.2 ms: the six-element spin-up
+    and reciprocating runs went from 0.6 s to 10-23 s whenever the caller (a test, a
+    notebook) had not limited the pool as the command line does. Five elements
+    (3n = 120) stayed on one thread, hence the jump from five to six."""
+    if not _BLAS:
+        _BLAS.append(ThreadpoolController())
+    return _BLAS[0].limit(limits=1, user_api="blas")
+
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _on_one_blas_thread(fn: Callable[_P, _R]) -> Callable[_P, _R]:
+    @functools.wraps(fn)
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with _one_blas_thread():
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@_on_one_blas_thread
 def radau5(
     rhs_stages: RhsStages,
     jac: Jacobian,
@@ -109,6 +142,7 @@ def radau5(
     jac_stages: JacobianStages | None = None,
     rhs_jac_stages: RhsJacStages | None = None,
     fixed_step_s: float | None = None,
+    second_order: bool = False,
 ) -> tuple[FloatArray, RadauStats, float]:
     """Integrate ``dy/dt = f(t, y)`` and return ``y`` at ``t_eval_s`` (T, n).
 
@@ -132,6 +166,12 @@ def radau5(
         rejection, so ``rtol`` and ``atol`` only scale Newton's stopping test. For
         convergence studies (the order of the method shows at the step ends); excludes
         ``first_step_s``; a Newton iteration that fails to converge raises.
+    second_order : the state is ``y = [d, v]`` (two halves) with ``d' = v`` exactly (the
+        first half of ``f`` is the second half of ``y``): with the stage Jacobians,
+        Newton then solves for the rate increments alone, 3n/2 unknowns, the displacement
+        increments following from ``P = h A (v + Q)``, and the error filter for n/2.
+        The same iterates as the 3n system, whose displacement rows are linear, at an
+        eighth of the factorisation (see :func:`_newton_second_order`).
 
     Returns
     -------
@@ -149,6 +189,9 @@ def radau5(
             return rhs_stages(ts, ys), js_only(ts, ys)
 
     full = rhs_jac_stages is not None
+    reduced = full and second_order
+    if second_order and np.size(y0) % 2:
+        raise SimInputError("second_order", f"needs a state of even size, got {np.size(y0)}")
     fixed = fixed_step_s is not None
     if fixed_step_s is not None:
         if not (math.isfinite(fixed_step_s) and fixed_step_s > 0.0):
@@ -170,7 +213,7 @@ def radau5(
     t = float(t_out[0])
     t_end = float(t_out[-1])
     eye = np.eye(n)
-    eye_3n = np.eye(3 * n) if full else eye
+    eye_3n = np.eye(3 * (n // 2 if reduced else n)) if full else eye
     newton_tol = max(10 * np.finfo(float).eps / rtol, min(0.03, rtol**0.5))
     span = t_end - t
     h = first_step_s if first_step_s is not None else min(1e-3, 0.01 * (t_out[1] - t_out[0]))
@@ -209,7 +252,7 @@ def radau5(
             else:
                 # extrapolate the last collocation polynomial to the new stages
                 x = (h * C + h_prev) / h_prev
-                z = (q_prev @ np.vstack([x, x * x, x**3])).T + (y_prev - y)[None, :]
+                z = (q_prev @ np.array([x, x * x, x * x * x])).T + (y_prev - y)[None, :]
             scale = atol + np.abs(y) * rtol
             if not full:
                 converged, n_iter, z, _rate = _newton(
@@ -217,11 +260,12 @@ def radau5(
                 )
             else:
                 assert rhs_jac_stages is not None
-                converged, n_iter, z, js, f_stages = _newton_full(
+                newton = _newton_second_order if reduced else _newton_full
+                converged, n_iter, z, js, f_stages = newton(
                     rhs_stages, rhs_jac_stages, t, y, h, z, scale, newton_tol, stats, eye_3n
                 )
                 # the error filter (I - h/mu J)^-1 with stage 1's Jacobian (at t + 0.16 h)
-                lu_r = _lu(MU_REAL / h * eye - js[0])
+                lu_r = _ErrorFilter(MU_REAL / h, js[0], reduced)
                 stats.n_lu += 1
             if not converged:
                 if fixed:
@@ -237,14 +281,14 @@ def radau5(
                 err = 0.0  # no error control at a fixed step
                 break
             ze = (z.T @ E) / h
-            error = _lu_solve(lu_r, f + ze)
+            error = _filter(lu_r, f + ze)
             scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
             err = _norm(error / scale)
             safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + n_iter)
             if rejected and err > 1:
                 fe = rhs_stages(np.array([t]), (y + error)[None, :])[0]
                 stats.n_rhs += 1
-                error = _lu_solve(lu_r, fe + ze)
+                error = _filter(lu_r, fe + ze)
                 err = _norm(error / scale)
             if not math.isfinite(err):
                 h *= 0.5
@@ -408,11 +452,128 @@ def _newton_full(
     return False, k + 1, z, js, f
 
 
+class _ErrorFilter:
+    """``(gamma I - J)^-1`` (``gamma = mu / h``) for the embedded error estimate; for a
+    second-order state (``J = [[0, I], [Kd, Kv]]``) by the Schur complement on the
+    displacements: ``(gamma^2 I - gamma Kv - Kd) e_d = b_v + (gamma I - Kv) b_d``,
+    ``e_v = gamma e_d - b_d`` (a factorisation of n/2 rows instead of n)."""
+
+    def __init__(self, gamma: float, jac: FloatArray, second_order: bool) -> None:
+        self.gamma = gamma
+        n = jac.shape[0]
+        self.m = n // 2 if second_order else 0
+        if second_order:
+            m = self.m
+            self.shifted_kv = -jac[m:, m:]
+            self.shifted_kv.flat[:: m + 1] += gamma
+            self.lu = _lu(gamma * self.shifted_kv - jac[m:, :m])
+        else:
+            self.lu = _lu(gamma * np.eye(n) - jac)
+
+    def solve(self, b: FloatArray) -> FloatArray:
+        m = self.m
+        if not m:
+            return _lu_solve(self.lu, b)
+        e_d = _lu_solve(self.lu, b[m:] + self.shifted_kv @ b[:m])
+        return np.concatenate([e_d, self.gamma * e_d - b[:m]])
+
+
+def _filter(lu: _ErrorFilter | tuple[FloatArray, NDArray[np.int32]], b: FloatArray) -> FloatArray:
+    """The error filter's solve with either kind of factors."""
+    return lu.solve(b) if isinstance(lu, _ErrorFilter) else _lu_solve(lu, b)
+
+
+#: ``A_ij A_jk`` as [i, k, j]: the displacement part of the reduced Newton matrix
+_AA = np.einsum("ij,jk->ikj", A, A)
+_AA_FLAT = _AA.reshape(9, 3)
+
+
+def _newton_second_order(
+    rhs_stages: RhsStages,
+    rhs_jac_stages: RhsJacStages,
+    t: float,
+    y: FloatArray,
+    h: float,
+    z0: FloatArray,
+    scale: FloatArray,
+    tol: float,
+    stats: RadauStats,
+    eye: FloatArray,
+) -> tuple[bool, int, FloatArray, FloatArray, FloatArray]:
+    """:func:`_newton_full` for ``y = [d, v]`` with ``d' = v``: the same iteration on the
+    rate increments ``Q`` (3 x n/2) alone.
+
+    The stage equations split into ``P = h A (v + Q)`` (the displacement increments, linear)
+    and ``Q = h A a(d + P, v + Q)``; with ``P`` eliminated, Newton's matrix is
+    ``I - h (A x I) diag(Kv) - h^2 (A x I) diag(Kd) (A x I)`` (``Kd``, ``Kv`` each stage's
+    acceleration Jacobian by displacement and rate), 3n/2 rows. ``P`` is kept on its line
+    from the start, which is where the full iteration puts it after one step, so both
+    converge to the same stages; the stopping test is the full one on ``(P, Q)``."""
+    n = y.size
+    m = n // 2
+    ts = t + h * C
+    z = z0.copy()
+    z[:, :m] = h * (A @ (y[m:][None, :] + z[:, m:]))  # P on its line
+    dz = np.empty_like(z)
+    dz_norm_old: float | None = None
+    lu: tuple[FloatArray, NDArray[np.int32]] | None = None
+    jac_k = 0
+    js = np.empty((3, n, n))
+    hh = h * h
+    k = 0
+    for k in range(NEWTON_MAXITER):
+        ys = y[None, :] + z
+        stats.n_rhs += 3
+        stats.n_newton += 1
+        if lu is None:
+            f, js = rhs_jac_stages(ts, ys)
+            stats.n_jac += 3
+            stats.n_lu += 1
+            if not (_finite(f) and _finite(js)):
+                return False, k + 1, z, js, f
+            kd = js[:, m:, :m]
+            kv = js[:, m:, m:]
+            # (A x I) diag(Kd) (A x I) as one product: [(i, k), j] @ [j, (a, b)]
+            disp = (_AA_FLAT @ kd.reshape(3, m * m)).reshape(3, 3, m, m)
+            blocks = hh * disp + h * (A[:, :, None, None] * kv[None, :, :, :])
+            lu = _lu(eye - blocks.transpose(0, 2, 1, 3).reshape(3 * m, 3 * m))
+            jac_k = k
+            dz_norm_old = None
+        else:
+            f = rhs_stages(ts, ys)
+            if not _finite(f):
+                return False, k + 1, z, js, f
+        res = z[:, m:] - h * (A @ f[:, m:])
+        dq = _lu_solve(lu, -res.ravel()).reshape(3, m)
+        dz[:, m:] = dq
+        dz[:, :m] = h * (A @ dq)
+        dz_norm = _norm(dz / scale)
+        if not math.isfinite(dz_norm):
+            return False, k + 1, z, js, f
+        if dz_norm_old is not None:
+            rate = dz_norm / dz_norm_old
+            if rate >= JAC_REFRESH_RATE:
+                if rate >= 1.0 and jac_k == k - 1:
+                    return False, k + 1, z, js, f
+                if rate < 1.0:
+                    z = z + dz
+                lu = None
+                continue
+            z = z + dz
+            if rate / (1.0 - rate) * dz_norm < tol:
+                return True, k + 1, z, js, f + np.einsum("kij,kj->ki", js, dz)
+        else:
+            z = z + dz
+        if dz_norm < 1e-3 * tol:
+            return True, k + 1, z, js, f + np.einsum("kij,kj->ki", js, dz)
+        dz_norm_old = dz_norm
+    return False, k + 1, z, js, f
+
+
 def _predict_factor(h: float, h_old: float | None, err: float, err_old: float | None) -> float:
     """Gustafsson's predictive step-size factor (as scipy's Radau)."""
     if err_old is None or h_old is None or err == 0:
         multiplier = 1.0
     else:
         multiplier = h / h_old * (err_old / err) ** 0.25
-    with np.errstate(divide="ignore"):
-        return float(min(1.0, multiplier) * err**-0.25) if err > 0 else MAX_FACTOR
+    return min(1.0, multiplier) * err**-0.25 if err > 0 else MAX_FACTOR

@@ -152,6 +152,44 @@ def test_file_follows_the_log_contract(tmp_path: Path) -> None:
         assert log_msg.name == "start" and log_msg.level == 2
 
 
+def test_frame_chunks_are_stored_uncompressed_and_read_back(tmp_path: Path) -> None:
+    """JPEG and PNG gain nothing from zstd, so the chunks holding frames are written
+    uncompressed and those holding samples and events with the log's compression; every
+    message reads back with the ``mcap`` library and with beambench's reader."""
+    import zstandard
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+
+    rng = np.random.default_rng(12)
+    frames = [
+        Frame(30_000_000 * k + 11, k, _jpeg(40 + k, 48, 36), "jpeg", 48, 36) for k in range(9)
+    ]
+    frames.append(Frame(400_000_000, 9, _png(12, 8), "png", 12, 8))
+    path = tmp_path / "run.mcap"
+    _write(
+        path, [_samples(0, 150, rng), _samples(150, 30, rng)], frames, [Event(3, "info", "a", "")]
+    )
+    with open(path, "rb") as f:
+        chunks = [r for r in StreamReader(f, emit_chunks=True).records if isinstance(r, Chunk)]
+        f.seek(0)
+        reader = make_reader(f)
+        topic_of = {c.id: c.topic for c in reader.get_summary().channels.values()}  # type: ignore[union-attr]
+        f.seek(0)
+        images = [
+            m.data
+            for _, c, m in make_reader(f).iter_messages()
+            if topic_of[c.id] == "/camera/image"
+        ]
+    assert {c.compression for c in chunks} == {"", "zstd"}
+    for c in chunks:
+        raw = c.data if c.compression == "" else zstandard.decompress(c.data, c.uncompressed_size)
+        holds_image = b"\xff\xd8\xff" in raw or b"\x89PNG\r\n" in raw
+        assert holds_image == (c.compression == ""), (c.compression, len(raw))
+    assert len(images) == len(frames)
+    assert list(iter_frames(path)) == frames
+    assert read_run(path).samples.t_ns.size == 180
+
+
 def test_topic_and_time_filters(tmp_path: Path) -> None:
     rng = np.random.default_rng(3)
     path = tmp_path / "run.mcap"

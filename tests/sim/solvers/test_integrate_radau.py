@@ -93,3 +93,87 @@ def test_predicted_stage_jacobians_need_about_one_evaluation_per_step() -> None:
     )  # fmt: skip
     jac_per_step = res.settings["n_jac"] / 3 / res.settings["n_steps"]
     assert jac_per_step < 1.4
+
+
+def test_blas_runs_on_one_thread_during_the_integration_and_is_restored() -> None:
+    """OpenBLAS factors the 3n x 3n Newton matrix with its busy-waiting thread pool from
+    about 3n = 144 (six elements) on, which made a six-element run 10-40x slower whenever
+    another job held the second core; radau5 therefore holds BLAS to one thread itself
+    (whatever the caller set) and gives the caller's setting back afterwards."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    seen: list[int] = []
+
+    def rhs(ts: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        seen.extend(p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas")
+        return _pr_rhs(ts, ys)
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+        radau5(rhs, _pr_jac, np.linspace(0.0, 0.5, 6), np.array([1.0, 0.0]), rtol=1e-6, atol=1e-9)
+        after = [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+    assert seen and set(seen) == {1}
+    assert after == before
+
+
+def test_error_filter_on_the_displacements_equals_the_full_solve() -> None:
+    """The Schur complement of ``gamma I - J`` for ``J = [[0, I], [Kd, Kv]]`` gives the
+    full system's solution (to rounding), on random, unsymmetric blocks."""
+    from sim.solvers.radau import _ErrorFilter
+
+    rng = np.random.default_rng(5)
+    m = 7
+    kd = rng.normal(size=(m, m)) * 50.0
+    kv = rng.normal(size=(m, m)) * 3.0
+    jac = np.block([[np.zeros((m, m)), np.eye(m)], [kd, kv]])
+    b = rng.normal(size=2 * m)
+    gamma = 41.3
+    exact = np.linalg.solve(gamma * np.eye(2 * m) - jac, b)
+    for second_order in (False, True):
+        got = _ErrorFilter(gamma, jac, second_order).solve(b)
+        np.testing.assert_allclose(got, exact, rtol=1e-12, atol=1e-12 * np.max(np.abs(exact)))
+
+
+def _duffing(ts: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two coupled stiff, damped, nonlinear oscillators, y = [x1, x2, v1, v2], and their
+    Jacobians; forced at 3 rad/s."""
+    x1, x2, v1, v2 = ys.T
+    k, c = 4.0e4, 30.0
+    a1 = -k * (x1 - x2) - 5.0 * x1**3 - c * (v1 - v2) + np.sin(3.0 * ts)
+    a2 = -k * (x2 - x1) - 20.0 * x2 - c * (v2 - v1) - x2 * v2**2
+    f = np.stack([v1, v2, a1, a2], axis=1)
+    j = np.zeros((ts.size, 4, 4))
+    j[:, 0, 2] = j[:, 1, 3] = 1.0
+    j[:, 2, 0], j[:, 2, 1], j[:, 2, 2], j[:, 2, 3] = -k - 15.0 * x1**2, k, -c, c
+    j[:, 3, 0], j[:, 3, 1], j[:, 3, 2], j[:, 3, 3] = k, -k - 20.0 - v2**2, c, -c - 2 * x2 * v2
+    return f, j
+
+
+def test_second_order_newton_gives_the_full_newtons_solution() -> None:
+    """Newton on the rates alone converges to the same collocation solution as on the
+    whole state: the two runs agree far inside their tolerance, against a tight run."""
+    t = np.linspace(0.0, 3.0, 61)
+    y0 = np.array([0.01, -0.02, 0.0, 0.3])
+
+    def rhs(ts: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        return _duffing(ts, ys)[0]
+
+    def jac(t_s: float, y: np.ndarray) -> np.ndarray:
+        return _duffing(np.array([t_s]), y[None, :])[1][0]
+
+    def run(rtol: float, second_order: bool) -> tuple[np.ndarray, int]:
+        y, stats, _ = radau5(
+            rhs, jac, t, y0, rtol=rtol, atol=rtol, rhs_jac_stages=_duffing,
+            second_order=second_order,
+        )  # fmt: skip
+        return y, stats.n_newton
+
+    truth = run(1e-11, False)[0]
+    for rtol in (1e-5, 1e-7):
+        (full, it_full), (reduced, it_reduced) = run(rtol, False), run(rtol, True)
+        err_full = np.max(np.abs(full - truth))
+        assert np.max(np.abs(reduced - truth)) <= 2.0 * err_full + 1e-12
+        assert err_full <= 1e3 * rtol  # sanity: both follow the tolerance
+        # the same Newton (exact matrix): as many iterations, not a slower fixed point
+        assert abs(it_reduced - it_full) <= 0.05 * it_full
+    assert np.max(np.abs(run(1e-11, True)[0] - truth)) < 1e-8
