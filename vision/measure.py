@@ -34,7 +34,10 @@ from numpy.typing import NDArray
 
 from vision.calibration import Calibration
 from vision.centreline import (
+    TUKEY_C,
     CentreLine,
+    JointFit,
+    ModalCentreLine,
     arc_length,
     fit_clamped_joint,
     stations_to_a,
@@ -58,6 +61,24 @@ _END_MARGIN_PX = 10.0
 _SMALL_TURN_RAD = 1e-4
 
 
+#: Frames whose beam edges have more than this fraction of their points beyond the
+#: biweight's reach are refused: Gaussian noise puts 3e-6 there, clutter beside the beam
+#: none (at most 0.1 % on every rendered bench set); a damaged JPEG's shifted blocks 16-20 %.
+_MAX_OUTLIER_FRACTION = 0.1
+
+#: The modal fit is repeated in the turned frame above this turn: what the first-order
+#: turn leaves, ~turn x the deflection x the slope, is then below 2e-6 m.
+_MODAL_TURN_RAD = 5e-4
+
+
+def _chi2_999(dof: int) -> float:
+    """The 0.999 quantile of chi-squared with ``dof`` degrees of freedom (Wilson and
+    Hilferty's cube-root normal approximation, within 1 % from 3 degrees of freedom)."""
+    z = 3.0902  # the normal's 0.999 quantile
+    h = 2.0 / (9.0 * dof)
+    return dof * (1.0 - h + z * math.sqrt(h)) ** 3
+
+
 class Measurer:
     """Measures frames of one camera placement. Build once, call :meth:`measure` per frame;
     picklable (plain arrays), so it can be sent to worker processes.
@@ -74,6 +95,16 @@ class Measurer:
     max_tip_uncertainty_m : frames whose stated tip lateral standard uncertainty exceeds
         it are refused ("too noisy"); below it, they are measured with that uncertainty
         (``max_tip_std_m`` is its former name).
+    shape_modes : the beam's shape is fitted as this many clamped-free modes (the
+        physics of a cantilever: zero moment and shear at its free end) as well as the
+        generic clamped polynomial of ``poly_degree``; the modal fit is taken when the
+        two agree on the hub angle and the tip within 3 standard uncertainties of their
+        difference, its uncertainties then widened by that difference (the shape model's
+        own error). 0: the polynomial alone.
+    max_edge_correlation : frames whose beam-edge residuals correlate beyond it from one
+        scan line to the next are refused: the edges then run away from any smooth beam
+        shape (a damaged JPEG's shifted blocks measured 0.89-0.91 and came out ``ok`` with
+        11-14 mm of tip error; the rendered bench sets stay below 0.54).
     """
 
     def __init__(
@@ -88,6 +119,8 @@ class Measurer:
         max_root_slope_rad: float = 0.01,
         max_tip_uncertainty_m: float = 0.5e-3,
         max_tip_std_m: float | None = None,
+        shape_modes: int = 4,
+        max_edge_correlation: float = 0.85,
     ) -> None:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
@@ -106,6 +139,8 @@ class Measurer:
         # ``max_tip_std_m``: the former name of ``max_tip_uncertainty_m``.
         limit = max_tip_uncertainty_m if max_tip_std_m is None else max_tip_std_m
         self.max_tip_std_m = float(limit)
+        self.shape_modes = int(shape_modes)
+        self.max_edge_correlation = float(max_edge_correlation)
         # Plane size of a pixel about the pivot (search step sizes are set from it).
         pivot_px = calibration.to_px(np.zeros((1, 2)))[0]
         nb = calibration.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
@@ -204,9 +239,16 @@ class Measurer:
             if abs(turn) < _SMALL_TURN_RAD:
                 break
         assert joint is not None
+        sd_hub = joint.rotation_sd_rad
+        sd_tip = joint.fit.tip_sd
+        poly_fit = joint.fit  # the generic shape: the checks on the edges' residuals
+        if self.shape_modes > 0:
+            modal = self._modal(pa, pb, hub_a, hub_b, e, clamp, hub_w, length, joint, amax)
+            if modal is not None:
+                e, joint, amax, sd_hub, sd_tip = modal
+                d_clamp = float(clamp @ e)
         n = np.array([-e[1], e[0]])
         clamp = d_clamp * e
-        sd_hub = joint.rotation_sd_rad
         if math.isfinite(joint.hub_width):
             hub_w = joint.hub_width
         fit = joint.fit
@@ -228,6 +270,24 @@ class Measurer:
                 f"motion blur: beam edges spread {blur:.1f} px ({blur * px_m * 1e3:.1f} mm of "
                 f"smear in the plane; measured up to {self.max_blur_px:.0f} px)"
             )
+        # A beam is a smooth curve: the edges' residuals from its fitted shape are the
+        # image noise, correlated from one scan line to the next only through the
+        # noise's own reach (up to 0.54 on every bench set). Residuals that run together
+        # (a shifted image block of a damaged JPEG, an occlusion) are a shape the beam
+        # does not have.
+        if poly_fit.outlier_fraction > _MAX_OUTLIER_FRACTION:
+            raise FrameFailure(
+                f"the beam's edges leave any smooth beam shape at "
+                f"{poly_fit.outlier_fraction:.0%} of their points (outliers beyond "
+                f"{TUKEY_C:.1f} sigma): damaged or occluded frame?"
+            )
+        if poly_fit.edge_rho > self.max_edge_correlation:
+            raise FrameFailure(
+                f"the beam's edges depart from a smooth beam in runs (residuals "
+                f"{poly_fit.rms * 1e3:.2f} mm RMS, correlated {poly_fit.edge_rho:.2f} from "
+                "line to line): "
+                "damaged or occluded frame?"
+            )
         # The clamped prior's check: a hub or beam mis-measured shows as a slope at the
         # root, beyond what the edges' noise explains (a noisy frame's slope is as
         # uncertain as its tip, which the uncertainty limit below refuses).
@@ -245,8 +305,7 @@ class Measurer:
                 f"{length * 1e3:.0f} mm (occluded or out of view?)"
             )
         # Predicted noise of the tip's lateral deflection: the centre line's uncertainty
-        # at its end, the axis's (fitted with it) included.
-        sd_tip = fit.tip_sd
+        # at its end, the axis's (fitted with it) included (``sd_tip`` above).
         if sd_tip > self.max_tip_std_m:
             raise FrameFailure(
                 f"too noisy: tip lateral uncertainty {sd_tip * 1e3:.2f} mm "
@@ -281,6 +340,71 @@ class Measurer:
             blur_px=blur,
             method="default",
         )
+
+    def _modal(
+        self,
+        pa: NDArray[np.float64],
+        pb: NDArray[np.float64],
+        hub_a: NDArray[np.float64],
+        hub_b: NDArray[np.float64],
+        e: NDArray[np.float64],
+        clamp: NDArray[np.float64],
+        hub_w: float,
+        length: float,
+        poly: JointFit,
+        amax_poly: float,
+    ) -> tuple[NDArray[np.float64], JointFit, float, float, float] | None:
+        """The axis and the shape fitted in the cantilever's mode space, starting from the
+        polynomial fit's axis ``e``: (axis, fit, amax, hub sd, tip sd), or None when the
+        modal fit fails or disagrees with the polynomial one (``poly``) beyond 3 standard
+        uncertainties of the difference on the hub angle or the tip (the polynomial's
+        variance less the modal one's: the difference of an efficient and a consistent
+        estimator, Hausman's test). The stated uncertainties include the difference."""
+        e0 = e
+        joint: JointFit | None = None
+        amax = amax_poly
+        for _ in range(4):
+            n = np.array([-e[1], e[0]])
+            d_clamp = float(clamp @ e)
+            on_axis = d_clamp * e
+            la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
+            amax = float(max(la[:, 0].max(), lb[:, 0].max()))
+            ha = np.column_stack([(hub_a - on_axis) @ e, (hub_a - on_axis) @ n])
+            hb = np.column_stack([(hub_b - on_axis) @ e, (hub_b - on_axis) @ n])
+            res = fit_clamped_joint(
+                la,
+                lb,
+                ha,
+                hb,
+                self.poly_degree,
+                amax,
+                d_clamp,
+                modes=self.shape_modes,
+                beam_length=length,
+                along=poly.fit.centre,
+            )
+            if isinstance(res, str):
+                return None
+            joint = res
+            c, sn = math.cos(res.rotation_rad), math.sin(res.rotation_rad)
+            e = np.array([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
+            if abs(res.rotation_rad) < _MODAL_TURN_RAD:
+                break
+        if joint is None or not joint.shape_chi2 <= _chi2_999(joint.shape_dof):
+            return None
+        gap = math.asin(max(-1.0, min(1.0, float(e0[0] * e[1] - e0[1] * e[0]))))
+        var_gap = poly.rotation_sd_rad**2 - joint.rotation_sd_rad**2
+        tip_m = float(joint.fit.centre(np.array([amax]))[0])
+        tip_p = float(poly.fit.centre(np.array([amax_poly]))[0])
+        d_tip = tip_m - tip_p
+        var_tip = poly.fit.tip_sd**2 - joint.fit.tip_sd**2
+        if var_gap <= 0 or var_tip <= 0:
+            return None
+        if gap * gap > 9.0 * var_gap or d_tip * d_tip > 9.0 * var_tip:
+            return None
+        sd_hub = math.hypot(joint.rotation_sd_rad, gap)
+        sd_tip = math.hypot(joint.fit.tip_sd, d_tip)
+        return e, joint, amax, sd_hub, sd_tip
 
     def _strip_points(
         self,
@@ -396,7 +520,7 @@ class Measurer:
         clamp: NDArray[np.float64],
         e: NDArray[np.float64],
         n: NDArray[np.float64],
-        centre: CentreLine,
+        centre: CentreLine | ModalCentreLine,
         amax: float,
         w_beam: float,
     ) -> tuple[float, float]:
