@@ -48,7 +48,7 @@ from vision.frame_measurement import FrameMeasurement
 from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import median
+from vision.sampling import bilinear, median
 
 log = logging.getLogger(__name__)
 
@@ -89,7 +89,11 @@ class Measurer:
     stations_m : distances from the clamp (m) at which lateral deflection is reported.
     method : ``"default"`` or ``"paper"``.
     max_blur_px : frames whose beam edges spread wider (median ramp width along the scan
-        lines, motion blur) are refused: the edge fits are biased beyond it.
+        lines, motion blur) are measured from the centroids of the beam's light on each
+        scan line instead of its edges (the edge fits are biased beyond it; the centroid
+        of the exposure's time-average is the centre at mid-exposure).
+    max_smear_px : smeared frames whose edges spread beyond it (99th percentile) are
+        refused, the smear in the reason.
     max_root_slope_rad : a free fit's slope at the root beyond this and beyond 4 of its
         standard uncertainties flags the frame (hub or beam mis-measured).
     max_tip_uncertainty_m : frames whose stated tip lateral standard uncertainty exceeds
@@ -115,6 +119,7 @@ class Measurer:
         method: str = "default",
         poly_degree: int = 8,
         max_blur_px: float = 6.0,
+        max_smear_px: float = 80.0,
         edge_estimator: str = "erf",
         max_root_slope_rad: float = 0.01,
         max_tip_uncertainty_m: float = 0.5e-3,
@@ -134,6 +139,7 @@ class Measurer:
         self.method = method
         self.poly_degree = int(poly_degree)
         self.max_blur_px = float(max_blur_px)
+        self.max_smear_px = float(max_smear_px)
         self.edge_estimator = edge_estimator
         self.max_root_slope_rad = float(max_root_slope_rad)
         # ``max_tip_std_m``: the former name of ``max_tip_uncertainty_m``.
@@ -207,7 +213,15 @@ class Measurer:
         # The hub's and the beam's edges, scanned in one pass (a scan's fixed cost is
         # about that of its lines); a hub too short to show edge points clear of its end
         # faces gives none.
-        hub_pts, (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
+        hub_pts, (pa, pb), spread = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
+        blur = median(spread)
+        smear_px = 0.0
+        if blur > self.max_blur_px:
+            # Motion blur: the beam's edges are ramps, and beyond a smear of its width
+            # they have no plateau between them; the centroid of each scan line's light
+            # is its centre at mid-exposure (edge estimators are biased there).
+            smear_px = float(np.percentile(spread, 99))
+            pa, pb = self._centroid_points(image, rough, clamp, e, n, hub_w, w_beam, smear_px)
         margin = _END_MARGIN_PX * px_m
         sd_hub_edges, e_hub = math.nan, None
         if hub_pts is not None and float((clamp - back) @ e) >= max(20 * px_m, 2.0 * hub_w):
@@ -264,11 +278,6 @@ class Measurer:
             raise FrameFailure(
                 f"beam width {width * 1e3:.1f} mm in the image disagrees with the "
                 f"calibration's {w_beam * 1e3:.1f} mm"
-            )
-        if blur > self.max_blur_px:
-            raise FrameFailure(
-                f"motion blur: beam edges spread {blur:.1f} px ({blur * px_m * 1e3:.1f} mm of "
-                f"smear in the plane; measured up to {self.max_blur_px:.0f} px)"
             )
         # A beam is a smooth curve: the edges' residuals from its fitted shape are the
         # image noise, correlated from one scan line to the next only through the
@@ -453,11 +462,11 @@ class Measurer:
         n: NDArray[np.float64],
         hub_w: float,
         w_beam: float,
-    ) -> tuple[tuple[NDArray, NDArray] | None, tuple[NDArray, NDArray], float]:
+    ) -> tuple[tuple[NDArray, NDArray] | None, tuple[NDArray, NDArray], NDArray[np.float64]]:
         """Edge points (plane, m) of the hub (past both its faces, along the rough axis;
         None when it is too short to show any clear of them) and of the beam (along its
         rough centre line, from past the shoulders to short of the tip), the two strips
-        scanned in one pass; and the beam edges' median ramp width (px)."""
+        scanned in one pass; and the beam edges' ramp widths (px)."""
         hub_len = float((clamp - back) @ e)
         with_hub = hub_len - 2 * _END_MARGIN_PX * self.px_m >= 8 * self.px_m
         # A scan line (a pixel row or column) crosses the hub's two edges up to a hub
@@ -481,11 +490,83 @@ class Measurer:
         beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
         if not with_hub:
             ((pa, pb, spread),) = self._strip_points(image, [(beam_line, 0.5 * w_beam)])
-            return None, (pa, pb), median(spread)
+            return None, (pa, pb), spread
         (ha, hb, _), (pa, pb, spread) = self._strip_points(
             image, [(hub_line, 0.5 * hub_w), (beam_line, 0.5 * w_beam)]
         )
-        return (ha, hb), (pa, pb), median(spread)
+        return (ha, hb), (pa, pb), spread
+
+    def _centroid_points(
+        self,
+        image: NDArray[np.uint8],
+        rough: Rough,
+        clamp: NDArray[np.float64],
+        e: NDArray[np.float64],
+        n: NDArray[np.float64],
+        hub_w: float,
+        w_beam: float,
+        smear_px: float,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """A smeared beam's centre points (plane, m): the centroids of its light on cuts
+        along its local normal every 2 px, sampled every half pixel in the plane, the
+        background the median of each cut's ends (a time-average's centroid is the
+        time-averaged centre: mid-exposure for a motion nearly linear over it). Given as
+        two interleaved "edges" half the beam's width either side across the hub axis,
+        which is how the centre-line fit sees edges (each centroid used once)."""
+        px_m = self.px_m
+        reach_m = 1.5 * smear_px * px_m + 0.5 * w_beam + 3 * px_m
+        if smear_px > self.max_smear_px:
+            raise FrameFailure(
+                f"motion blur: beam edges spread up to {smear_px:.0f} px "
+                f"({smear_px * px_m * 1e3:.0f} mm of smear in the plane; measured up to "
+                f"{self.max_smear_px:.0f} px)"
+            )
+        rel = rough.beam - clamp
+        a, b = rel @ e, rel @ n
+        order = np.argsort(a)
+        a, b = a[order], b[order]
+        a0 = self._beam_start(hub_w)
+        a1 = float((rough.tip - clamp) @ e) - 0.6 * w_beam - 4 * px_m
+        aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * px_m))))
+        bq = np.interp(aq, a, b)
+        # Cuts across the beam along its local normal, sampled evenly in the plane (so the
+        # centroid is the plane's; a cut oblique to a band whose smear grows along the
+        # beam would see one side wider than the other).
+        th = np.arctan(np.gradient(bq, aq))
+        nl = np.column_stack([-np.sin(th), np.cos(th)])  # hub frame (a, b)
+        t = np.arange(-reach_m, reach_m + 1e-12, 0.5 * px_m)
+        ca = aq[:, None] + t[None, :] * nl[:, 0:1]
+        cb = bq[:, None] + t[None, :] * nl[:, 1:2]
+        pts = clamp + ca.reshape(-1, 1) * e[None, :] + cb.reshape(-1, 1) * n[None, :]
+        prof = bilinear(image, self.calibration.to_px(pts)).reshape(ca.shape)
+        ok_line = np.all(np.isfinite(prof), axis=1)
+        prof, aq, bq, nl = prof[ok_line], aq[ok_line], bq[ok_line], nl[ok_line]
+        if len(prof) < 20:
+            raise FrameFailure("too few cuts across the smeared beam inside the image")
+        m_edge = max(3, int(4 * px_m / (0.5 * px_m)))
+        level = np.median(np.concatenate([prof[:, :m_edge], prof[:, -m_edge:]], axis=1), axis=1)
+        excess = prof - level[:, None]
+        # Re-centred once: the window then holds the light evenly about its centroid.
+        half_n = len(t) // 2 - m_edge
+        cen = np.zeros(len(prof))
+        mass = np.ones(len(prof))
+        idx = np.arange(len(t))[None, :]
+        for _ in range(2):
+            mid = np.round(cen / (0.5 * px_m)).astype(np.intp) + len(t) // 2
+            inside = np.abs(idx - mid[:, None]) <= half_n
+            ex = np.where(inside, excess, 0.0)
+            mass = ex.sum(axis=1)
+            cen = np.where(mass > 0, (ex * t[None, :]).sum(axis=1) / np.where(mass > 0, mass, 1), 0)
+        keep = mass > 0.35 * median(mass)
+        if keep.sum() < 20:
+            raise FrameFailure("too few cuts across the smeared beam")
+        ac = aq + cen * nl[:, 0]
+        bc = bq + cen * nl[:, 1]
+        ac, bc = ac[keep], bc[keep]
+        ac, bc = ac[: 2 * (len(ac) // 2)], bc[: 2 * (len(bc) // 2)]  # pair up point by point
+        cen_m = clamp + ac[:, None] * e[None, :] + bc[:, None] * n[None, :]
+        half = 0.5 * w_beam * n[None, :]
+        return cen_m[0::2] + half, cen_m[1::2] - half
 
     def _beam_start(self, hub_w: float) -> float:
         """Distance from the clamp (m) where the beam's edges start: scan lines nearer

@@ -269,3 +269,28 @@ def test_a_cantilevers_shape_on_a_short_hub_is_measured_through_its_modes(vt) ->
         assert abs(e[0]) <= 3 * math.degrees(m.hub_angle_std_rad), (e, m.hub_angle_std_rad)
         assert abs(e[1]) <= 3 * m.tip_lateral_std_m * 1e3, (e, m.tip_lateral_std_m)
         assert abs(e[0]) < 0.01 and abs(e[1]) < 0.15, e
+
+
+def test_a_20_mm_smear_is_measured_at_mid_exposure_and_a_wider_one_refused(vt) -> None:
+    """The tip crossing 20 mm during the exposure (hub turning, beam vibrating): the beam's
+    light, not its edges, gives the centre line, whose time-average is the mid-exposure
+    one; measured within 3 stated standard uncertainties and 0.15 mm (the issue's
+    target). With the measurable smear set below what the frame shows, it is refused and
+    the reason gives the smear."""
+    from vision.synthetic.scene import BeamMotion
+
+    spec = vt.make_spec(noise_dn=2.0, seed=33, pose=CameraPoseConfig(tilt_rad=math.radians(14)))
+    pose = BeamPose.from_load(math.radians(283), vt.L_M, lambda s: 1.0 + 0.3 * s / vt.L_M, 0.025)
+    x = pose.stations_m / vt.L_M
+    rate = 1.0 * x**2 * (6 - 4 * x + x**2) / 3  # the beam's own vibration, m/s
+    motion = BeamMotion(pose, 1.8, rate)
+    exposure = 0.020 / motion.tip_speed_m_s(0.008)
+    frame = render_frame(spec, motion.exposure_poses(exposure, 0.008))
+    m = Measurer(vt.truth_calibration(frame.truth)).measure(frame.image)
+    assert m.ok, m.reason
+    e = _errors(m, frame.truth)
+    assert m.blur_px > 6.0  # measured from the light, not the edges
+    assert abs(e[1]) <= 3 * m.tip_lateral_std_m * 1e3 and abs(e[1]) < 0.15, (e, m.tip_lateral_std_m)
+    assert abs(e[0]) <= 3 * math.degrees(m.hub_angle_std_rad), (e, m.hub_angle_std_rad)
+    strict = Measurer(vt.truth_calibration(frame.truth), max_smear_px=8.0).measure(frame.image)
+    assert not strict.ok and "motion blur" in strict.reason and "mm of smear" in strict.reason
