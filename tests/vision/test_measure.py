@@ -271,6 +271,7 @@ def test_a_cantilevers_shape_on_a_short_hub_is_measured_through_its_modes(vt) ->
         assert abs(e[0]) < 0.01 and abs(e[1]) < 0.15, e
 
 
+@pytest.mark.slow
 def test_a_20_mm_smear_is_measured_at_mid_exposure_and_a_wider_one_refused(vt) -> None:
     """The tip crossing 20 mm during the exposure (hub turning, beam vibrating): the beam's
     light, not its edges, gives the centre line, whose time-average is the mid-exposure
