@@ -13,6 +13,14 @@ difference) by iteratively reweighted least squares with Tukey's biweight, so po
 clutter beside the beam do not pull it. The basis is a polynomial of ``degree`` with no
 constant-slope term: that is the clamped-tangent prior. A second fit with a free slope
 at the root checks the prior (a hub measured askew shows as a slope there).
+
+:func:`fit_clamped_joint` can instead fit the beam's physical shape space: the first few
+clamped-free (cantilever) modes, which have ``w(0) = w'(0) = 0`` and, at the free end,
+zero moment and shear (``w'' = w''' = 0``). A real beam's deflection is the static
+response to its distributed (inertial and applied) load, whose content in mode ``i``
+falls as ``1 / beta_i^4``: five modes hold a smooth load's response to micrometres, with
+about half the generic polynomial's noise on the axis. The measurer checks the physical
+fit against the generic one and falls back on the latter when they disagree.
 """
 
 from __future__ import annotations
@@ -54,6 +62,128 @@ class CentreLine:
         return np.asarray(pw.polyval(ac / self.amax, self.dcoef))
 
 
+# -- the physical shape space: clamped-free modes ---------------------------------------
+@lru_cache(maxsize=4)
+def cantilever_eigenvalues(n_modes: int) -> tuple[float, ...]:
+    """``beta_i L`` of the first ``n_modes`` clamped-free modes: roots of
+    ``cos(x) cosh(x) = -1`` (1.8751, 4.6941, 7.8548, ...), by Newton's method from the
+    asymptote ``(i - 1/2) pi`` on ``cos(x) + 1 / cosh(x) = 0``."""
+    out = []
+    for i in range(1, n_modes + 1):
+        x = (i - 0.5) * math.pi
+        for _ in range(50):
+            f = math.cos(x) + 1.0 / math.cosh(x)
+            df = -math.sin(x) - math.tanh(x) / math.cosh(x)
+            step = f / df
+            x -= step
+            if abs(step) < 1e-15 * x:
+                break
+        out.append(x)
+    return tuple(out)
+
+
+def cantilever_modes_t(
+    x: NDArray[np.float64], n_modes: int, derivative: int = 0
+) -> NDArray[np.float64]:
+    """(n_modes, N) clamped-free mode shapes (or their ``derivative``-th derivative in
+    ``x``, 0 or 1) at ``x = s / L``, normalised to 2 at the free end:
+    ``cosh(bx) - cos(bx) - sigma (sinh(bx) - sin(bx))``, its growing and decaying
+    exponentials taken apart so the higher modes keep their digits."""
+    x = np.asarray(x, dtype=np.float64)
+    out = np.empty((n_modes, len(x)))
+    for k, beta in enumerate(cantilever_eigenvalues(n_modes)):
+        den = math.sinh(beta) + math.sin(beta)
+        sigma = (math.cosh(beta) + math.cos(beta)) / den
+        one_minus = (math.sin(beta) - math.cos(beta) - math.exp(-beta)) / den  # 1 - sigma
+        bx = beta * x
+        grow = np.exp(bx - beta)  # scaled by e^-beta: only (1 - sigma) e^beta is large
+        decay = np.exp(-bx)
+        big = one_minus * math.exp(beta)
+        if derivative == 0:
+            # cosh - sigma sinh = ((1 - sigma) e^bx + (1 + sigma) e^-bx) / 2
+            out[k] = 0.5 * (big * grow + (1 + sigma) * decay) - np.cos(bx) + sigma * np.sin(bx)
+        elif derivative == 1:
+            out[k] = beta * (
+                0.5 * (big * grow - (1 + sigma) * decay) + np.sin(bx) + sigma * np.cos(bx)
+            )
+        else:
+            raise ValueError(f"derivative must be 0 or 1, got {derivative}")
+    return out
+
+
+class ModalCentreLine:
+    """Centre line ``b(a)`` of an inextensible beam whose slope angle at arc length ``s``
+    from the clamp is ``theta(s) = sum_k c_k phi_k'(s / L) / L`` (clamped-free modes: the
+    linear theory's ``w' = theta``); the point at ``s`` lies at ``a(s) = int cos theta``,
+    ``b(s) = int sin theta`` (the renderer's kinematics, and a real beam's). Tabulated on
+    ``s`` and read at ``a`` (to ~1e-8 m), with a linear extension past ``amax`` like
+    :class:`CentreLine`."""
+
+    _N = 1601
+
+    def __init__(self, coef: NDArray[np.float64], beam_length: float, amax: float) -> None:
+        self.coef = np.asarray(coef, dtype=np.float64)
+        self.beam_length = float(beam_length)
+        self.amax = float(amax)
+        s = np.linspace(0.0, 1.1 * max(amax, beam_length), self._N)
+        th = (self.coef @ cantilever_modes_t(s / self.beam_length, len(self.coef), 1)) / (
+            self.beam_length
+        )
+        ds = np.diff(s)
+        c, sn = np.cos(th), np.sin(th)
+        a = np.concatenate([[0.0], np.cumsum(0.5 * (c[1:] + c[:-1]) * ds)])
+        b = np.concatenate([[0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * ds)])
+        self._s, self._a, self._b, self._slope = s, a, b, np.tan(th)
+        self._b_end = float(np.interp(self.amax, a, b))
+        self._d_end = float(np.interp(self.amax, a, self._slope))
+
+    def s_of_a(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Arc length from the clamp of the point at axis coordinate ``a``."""
+        return np.asarray(np.interp(a, self._a, self._s))
+
+    def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        a = np.asarray(a, dtype=np.float64)
+        ac = np.clip(a, 0.0, self.amax)
+        return np.asarray(np.interp(ac, self._a, self._b) + (a - ac) * self._d_end)
+
+    def deriv(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        ac = np.clip(np.asarray(a, dtype=np.float64), 0.0, self.amax)
+        return np.asarray(np.interp(ac, self._a, self._slope))
+
+
+def arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
+    """Arc length and the large-slope correction along ``centre`` as functions of ``a``
+    (tabulated to 1.1 ``a_end``)."""
+    if isinstance(centre, ModalCentreLine):
+        a, s, slope = centre._a, centre._s, centre._slope
+    else:
+        a = np.linspace(0.0, 1.1 * a_end, 401)
+        slope = centre.deriv(a)
+        ds = np.sqrt(1.0 + slope**2)
+        s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
+    th = np.arctan(slope)
+    f = th - np.sin(th)
+    corr = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(s))])
+    return ArcMap(a, s, corr)
+
+
+@dataclass
+class ArcMap:
+    """Along a centre line, tabulated at axis coordinates ``a``: the arc length ``s``
+    and ``corr = int_0^s (theta - sin theta)``, what the linear theory's deflection
+    ``int theta`` exceeds the lateral position ``int sin theta`` by."""
+
+    a: NDArray[np.float64]
+    s: NDArray[np.float64]
+    corr: NDArray[np.float64]
+
+    def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(np.interp(a, self.a, self.s))
+
+    def correction(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(np.interp(a, self.a, self.corr))
+
+
 @dataclass
 class CentreFit:
     """Result of :func:`fit_centreline` (hub frame, m).
@@ -64,7 +194,7 @@ class CentreFit:
     edge); ``root_slope_rad``: the slope at the clamp of a fit without the clamped prior.
     """
 
-    centre: CentreLine
+    centre: CentreLine | ModalCentreLine
     left: NDArray[np.float64]
     right: NDArray[np.float64]
     width: float
@@ -73,6 +203,13 @@ class CentreFit:
     root_slope_rad: float
     #: standard uncertainty of ``root_slope_rad`` (NaN where not computed).
     root_slope_sd_rad: float = math.nan
+    #: the largest lag-1 correlation of the residuals along either beam edge (NaN where
+    #: not computed): near 1 when the edges depart from the fitted shape in runs (a shifted
+    #: image block, an occlusion), not in noise.
+    edge_rho: float = math.nan
+    #: the fraction of the beam's edge points the biweight rejected (NaN where not
+    #: computed).
+    outlier_fraction: float = math.nan
 
 
 @lru_cache(maxsize=8)
@@ -109,6 +246,15 @@ def _basis_t(u: NDArray[np.float64], degree: int) -> NDArray[np.float64]:
         v[i] = (v[i - 1] * x * (2 * i - 1) - v[i - 2] * (i - 1)) / i
     v *= u * u
     return v
+
+
+def lag1_correlation(res: NDArray[np.float64]) -> float:
+    """Lag-1 autocorrelation of residuals ``res`` ordered along an edge (0 for fewer than
+    4 or all zero)."""
+    if len(res) < 4:
+        return 0.0
+    den = float(res @ res)
+    return float(res[1:] @ res[:-1]) / den if den > 0 else 0.0
 
 
 def correlation_inflation(res: NDArray[np.float64]) -> float:
@@ -197,6 +343,30 @@ def fit_centreline(
     )
 
 
+def _orthonormal_rows(x: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.float64], int]:
+    """Orthonormal rows spanning the rows of ``x`` (K, N), in order, by modified
+    Gram-Schmidt run twice (orthogonal to rounding however near the rows lie; in numpy
+    on a few long rows, where LAPACK's threaded QR stalls on a busy host). A row with
+    less than 1e-9 of its norm left is dropped; also how many of the first ``n_first``
+    rows were kept."""
+    out: list[NDArray[np.float64]] = []
+    kept_first = 0
+    for i, row in enumerate(x):
+        v = np.array(row, dtype=np.float64)
+        norm0 = float(np.sqrt(v @ v))
+        if norm0 == 0.0:
+            continue
+        for _ in range(2):
+            for qv in out:
+                v -= (qv @ v) * qv
+        norm = float(np.sqrt(v @ v))
+        if norm <= 1e-9 * norm0:
+            continue
+        out.append(v / norm)
+        kept_first += i < n_first
+    return np.array(out), kept_first
+
+
 def _wlstsq(a_t: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray:
     """Weighted least squares with the design matrix transposed (coefficients, points).
 
@@ -212,14 +382,14 @@ def _wlstsq(a_t: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.floa
 _ARC_SAMPLES = 801
 
 
-def arc_length(centre: CentreLine, a_end: float) -> float:
+def arc_length(centre: CentreLine | ModalCentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
     a = np.linspace(0.0, a_end, _ARC_SAMPLES)
     return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
 
 
 def stations_to_a(
-    centre: CentreLine, stations: NDArray[np.float64], a_end: float
+    centre: CentreLine | ModalCentreLine, stations: NDArray[np.float64], a_end: float
 ) -> NDArray[np.float64]:
     """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
     a = np.linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
@@ -244,6 +414,12 @@ class JointFit:
     hub_width: float
     hub_offset: float
     hub_rms: float
+    #: The modal fit's check (NaN for the polynomial): the beam's residual sum of squares
+    #: that the generic polynomial's ``shape_dof`` extra shapes remove, over the residual
+    #: variance (inflated for correlation): chi-squared with ``shape_dof`` degrees of
+    #: freedom when the modes hold the shape.
+    shape_chi2: float = math.nan
+    shape_dof: int = 0
 
 
 def fit_clamped_joint(
@@ -254,6 +430,10 @@ def fit_clamped_joint(
     degree: int,
     amax: float,
     clamp_from_pivot: float,
+    *,
+    modes: int = 0,
+    beam_length: float = math.nan,
+    along: CentreLine | ModalCentreLine | None = None,
 ) -> JointFit | str:
     """The hub's axis and the clamped centre line, fitted together.
 
@@ -273,13 +453,73 @@ def fit_clamped_joint(
     :func:`fit_centreline`). Linear in ``delta`` to first order: the caller turns the
     axis by ``rotation_rad`` and fits again until the turn vanishes.
 
+    With ``modes`` > 0 the shape is the first ``modes`` clamped-free modes of a beam of
+    ``beam_length`` (m) instead of the polynomial: ``w(s) = sum_k c_k phi_k(s / L)`` at
+    the arc length ``s`` of each edge point along ``along`` (a previous fit's centre
+    line; without it, ``s`` is taken from a first fit: two fits). The result's
+    ``shape_chi2`` then tests the modes against the modes and the polynomial together.
+
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
+    if modes <= 0:
+        return _fit_joint(left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, None)
+    if not (math.isfinite(beam_length) and beam_length > 0):
+        raise ValueError(f"beam_length must be positive with modes, got {beam_length!r}")
+    if along is None:
+        first = _fit_joint(
+            left,
+            right,
+            hub_a,
+            hub_b,
+            degree,
+            amax,
+            clamp_from_pivot,
+            _Modes(modes, beam_length, amax, None),
+        )
+        if isinstance(first, str):
+            return first
+        along = first.fit.centre
+    shape = _Modes(modes, beam_length, amax, arc_map(along, amax))
+    return _fit_joint(left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, shape)
+
+
+@dataclass
+class _Modes:
+    """The modal shape space of :func:`fit_clamped_joint` (``along``: each point's arc
+    length from its ``a``; None: the arc length taken as ``a``)."""
+
+    n: int
+    beam_length: float
+    amax: float
+    along: ArcMap | None
+
+    def basis_t(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = a if self.along is None else self.along(a)
+        return cantilever_modes_t(s / self.beam_length, self.n)
+
+    def correction(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.zeros_like(a) if self.along is None else self.along.correction(a)
+
+    def centre(self, coef: NDArray[np.float64]) -> ModalCentreLine:
+        return ModalCentreLine(coef, self.beam_length, self.amax)
+
+
+def _fit_joint(
+    left: NDArray[np.float64],
+    right: NDArray[np.float64],
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    degree: int,
+    amax: float,
+    clamp_from_pivot: float,
+    modal: _Modes | None,
+) -> JointFit | str:
+    """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space."""
     nl, nr = len(left), len(right)
     nh = len(hub_a) + len(hub_b)
     use_hub = len(hub_a) >= 5 and len(hub_b) >= 5
     if not use_hub:
         hub_a, hub_b, nh = np.zeros((0, 2)), np.zeros((0, 2)), 0
-    p_shape = degree - 1
+    p_shape = degree - 1 if modal is None else modal.n
     n_beam = nl + nr
     if min(nl, nr) < degree + 4:
         return "beam edges too ragged"
@@ -294,7 +534,13 @@ def fit_clamped_joint(
         a_t[2, n_beam : n_beam + len(hub_a)] = 1.0
         a_t[3, n_beam + len(hub_a) :] = 1.0
     u = a_all[:n_beam] / amax
-    a_t[n_coef - p_shape :, :n_beam] = _basis_t(u, degree)
+    if modal is None:
+        a_t[n_coef - p_shape :, :n_beam] = _basis_t(u, degree)
+    else:
+        a_t[n_coef - p_shape :, :n_beam] = modal.basis_t(a_all[:n_beam])
+        # The modes give the linear theory's deflection, int theta; an edge point lies
+        # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
+        b[:n_beam] += modal.correction(a_all[:n_beam])
     groups = [np.arange(n_beam), np.arange(n_beam, n_all)] if use_hub else [np.arange(n_beam)]
     w = np.ones(n_all)
     keep = np.ones(n_all, dtype=bool)
@@ -317,7 +563,7 @@ def fit_clamped_joint(
         keep[n_beam : n_beam + len(hub_a)].sum() < 3 or keep[n_beam + len(hub_a) :].sum() < 3
     ):  # the hub's edges are not straight lines: the beam's root alone
         empty = np.zeros((0, 2))
-        return fit_clamped_joint(left, right, empty, empty, degree, amax, clamp_from_pivot)
+        return _fit_joint(left, right, empty, empty, degree, amax, clamp_from_pivot, modal)
     # Final fit: the inliers, each group at its own variance (from its residuals).
     wk = np.zeros(n_all)
     r = b - _wlstsq(a_t, b, np.where(keep, 1.0 / sig**2, 0.0)) @ a_t
@@ -337,7 +583,10 @@ def fit_clamped_joint(
     infl = max(correlation_inflation(r[i:j][keep[i:j]]) for i, j in spans)
     cov = np.linalg.inv(gram) * infl
     g_tip = np.zeros(n_coef)
-    g_tip[n_coef - p_shape :] = _basis(np.array([1.0]), degree)[0]
+    if modal is None:
+        g_tip[n_coef - p_shape :] = _basis(np.array([1.0]), degree)[0]
+    else:
+        g_tip[n_coef - p_shape :] = modal.basis_t(np.array([amax]))[:, 0]
     tip_sd = math.sqrt(max(float(g_tip @ cov @ g_tip), 0.0))
     # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
     # free offset and a free slope at the root.
@@ -351,10 +600,14 @@ def fit_clamped_joint(
     s2_free = float(res_free @ res_free) / max(int(kb.sum()) - len(free), 1)
     slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
     slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
-    centre_u = _to_power(degree).T @ coef[n_coef - p_shape :]
+    centre: CentreLine | ModalCentreLine
+    if modal is None:
+        centre = CentreLine(_to_power(degree).T @ coef[n_coef - p_shape :], amax)
+    else:
+        centre = modal.centre(coef[n_coef - p_shape :])
     rb = r[:n_beam][kb]
     fit = CentreFit(
-        centre=CentreLine(centre_u, amax),
+        centre=centre,
         left=left[keep[:nl]],
         right=right[keep[nl:n_beam]],
         width=float(coef[0]),
@@ -362,7 +615,24 @@ def fit_clamped_joint(
         tip_sd=tip_sd,
         root_slope_rad=slope,
         root_slope_sd_rad=slope_sd,
+        edge_rho=max(lag1_correlation(r[i:j][keep[i:j]]) for i, j in spans[:2]),
+        outlier_fraction=1.0 - float(kb.mean()),
     )
+    shape_chi2, shape_dof = math.nan, 0
+    if modal is not None:
+        # The modes against the modes and the polynomial together, on the beam's inliers
+        # (its own width, turn and shape): the residual's components along the extra
+        # shapes, orthonormalised against the modes', are independent N(0, sigma^2)
+        # when the modes hold the shape, however near the two spaces lie.
+        x_m = np.vstack([a_t[0, :n_beam], a_t[1, :n_beam], a_t[n_coef - p_shape :, :n_beam]])
+        q, n_m = _orthonormal_rows(np.vstack([x_m, _basis_t(u, degree)])[:, kb], len(x_m))
+        yb = b[:n_beam][kb]
+        proj = q @ yb
+        extra = proj[n_m:]
+        shape_dof = len(extra)
+        rss_u = float(yb @ yb - proj @ proj)
+        s2_u = max(rss_u, 1e-30) / max(int(kb.sum()) - len(q), 1)
+        shape_chi2 = float(extra @ extra) / (s2_u * infl)
     if use_hub:
         rh = r[n_beam:][keep[n_beam:]]
         hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
@@ -376,4 +646,6 @@ def fit_clamped_joint(
         hub_width=hub[0],
         hub_offset=hub[1],
         hub_rms=hub_rms,
+        shape_chi2=shape_chi2,
+        shape_dof=shape_dof,
     )

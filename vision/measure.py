@@ -34,7 +34,10 @@ from numpy.typing import NDArray
 
 from vision.calibration import Calibration
 from vision.centreline import (
+    TUKEY_C,
     CentreLine,
+    JointFit,
+    ModalCentreLine,
     arc_length,
     fit_clamped_joint,
     stations_to_a,
@@ -45,7 +48,7 @@ from vision.frame_measurement import FrameMeasurement
 from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import median
+from vision.sampling import bilinear, median
 
 log = logging.getLogger(__name__)
 
@@ -58,6 +61,24 @@ _END_MARGIN_PX = 10.0
 _SMALL_TURN_RAD = 1e-4
 
 
+#: Frames whose beam edges have more than this fraction of their points beyond the
+#: biweight's reach are refused: Gaussian noise puts 3e-6 there, clutter beside the beam
+#: none (at most 0.1 % on every rendered bench set); a damaged JPEG's shifted blocks 16-20 %.
+_MAX_OUTLIER_FRACTION = 0.1
+
+#: The modal fit is repeated in the turned frame above this turn: what the first-order
+#: turn leaves, ~turn x the deflection x the slope, is then below 2e-6 m.
+_MODAL_TURN_RAD = 5e-4
+
+
+def _chi2_999(dof: int) -> float:
+    """The 0.999 quantile of chi-squared with ``dof`` degrees of freedom (Wilson and
+    Hilferty's cube-root normal approximation, within 1 % from 3 degrees of freedom)."""
+    z = 3.0902  # the normal's 0.999 quantile
+    h = 2.0 / (9.0 * dof)
+    return dof * (1.0 - h + z * math.sqrt(h)) ** 3
+
+
 class Measurer:
     """Measures frames of one camera placement. Build once, call :meth:`measure` per frame;
     picklable (plain arrays), so it can be sent to worker processes.
@@ -68,12 +89,26 @@ class Measurer:
     stations_m : distances from the clamp (m) at which lateral deflection is reported.
     method : ``"default"`` or ``"paper"``.
     max_blur_px : frames whose beam edges spread wider (median ramp width along the scan
-        lines, motion blur) are refused: the edge fits are biased beyond it.
+        lines, motion blur) are measured from the centroids of the beam's light on each
+        scan line instead of its edges (the edge fits are biased beyond it; the centroid
+        of the exposure's time-average is the centre at mid-exposure).
+    max_smear_px : smeared frames whose edges spread beyond it (99th percentile) are
+        refused, the smear in the reason.
     max_root_slope_rad : a free fit's slope at the root beyond this and beyond 4 of its
         standard uncertainties flags the frame (hub or beam mis-measured).
     max_tip_uncertainty_m : frames whose stated tip lateral standard uncertainty exceeds
         it are refused ("too noisy"); below it, they are measured with that uncertainty
         (``max_tip_std_m`` is its former name).
+    shape_modes : the beam's shape is fitted as this many clamped-free modes (the
+        physics of a cantilever: zero moment and shear at its free end) as well as the
+        generic clamped polynomial of ``poly_degree``; the modal fit is taken when the
+        two agree on the hub angle and the tip within 3 standard uncertainties of their
+        difference, its uncertainties then widened by that difference (the shape model's
+        own error). 0: the polynomial alone.
+    max_edge_correlation : frames whose beam-edge residuals correlate beyond it from one
+        scan line to the next are refused: the edges then run away from any smooth beam
+        shape (a damaged JPEG's shifted blocks measured 0.89-0.91 and came out ``ok`` with
+        11-14 mm of tip error; the rendered bench sets stay below 0.54).
     """
 
     def __init__(
@@ -84,10 +119,13 @@ class Measurer:
         method: str = "default",
         poly_degree: int = 8,
         max_blur_px: float = 6.0,
+        max_smear_px: float = 80.0,
         edge_estimator: str = "erf",
         max_root_slope_rad: float = 0.01,
         max_tip_uncertainty_m: float = 0.5e-3,
         max_tip_std_m: float | None = None,
+        shape_modes: int = 4,
+        max_edge_correlation: float = 0.85,
     ) -> None:
         if not isinstance(calibration, Calibration):
             raise TypeError(f"calibration must be a Calibration, got {type(calibration).__name__}")
@@ -101,11 +139,14 @@ class Measurer:
         self.method = method
         self.poly_degree = int(poly_degree)
         self.max_blur_px = float(max_blur_px)
+        self.max_smear_px = float(max_smear_px)
         self.edge_estimator = edge_estimator
         self.max_root_slope_rad = float(max_root_slope_rad)
         # ``max_tip_std_m``: the former name of ``max_tip_uncertainty_m``.
         limit = max_tip_uncertainty_m if max_tip_std_m is None else max_tip_std_m
         self.max_tip_std_m = float(limit)
+        self.shape_modes = int(shape_modes)
+        self.max_edge_correlation = float(max_edge_correlation)
         # Plane size of a pixel about the pivot (search step sizes are set from it).
         pivot_px = calibration.to_px(np.zeros((1, 2)))[0]
         nb = calibration.to_plane(pivot_px[None, :] + np.array([[1.0, 0.0], [0.0, 1.0]]))
@@ -172,7 +213,15 @@ class Measurer:
         # The hub's and the beam's edges, scanned in one pass (a scan's fixed cost is
         # about that of its lines); a hub too short to show edge points clear of its end
         # faces gives none.
-        hub_pts, (pa, pb), blur = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
+        hub_pts, (pa, pb), spread = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
+        blur = median(spread)
+        smear_px = 0.0
+        if blur > self.max_blur_px:
+            # Motion blur: the beam's edges are ramps, and beyond a smear of its width
+            # they have no plateau between them; the centroid of each scan line's light
+            # is its centre at mid-exposure (edge estimators are biased there).
+            smear_px = float(np.percentile(spread, 99))
+            pa, pb = self._centroid_points(image, rough, clamp, e, n, hub_w, w_beam, smear_px)
         margin = _END_MARGIN_PX * px_m
         sd_hub_edges, e_hub = math.nan, None
         if hub_pts is not None and float((clamp - back) @ e) >= max(20 * px_m, 2.0 * hub_w):
@@ -204,9 +253,16 @@ class Measurer:
             if abs(turn) < _SMALL_TURN_RAD:
                 break
         assert joint is not None
+        sd_hub = joint.rotation_sd_rad
+        sd_tip = joint.fit.tip_sd
+        poly_fit = joint.fit  # the generic shape: the checks on the edges' residuals
+        if self.shape_modes > 0:
+            modal = self._modal(pa, pb, hub_a, hub_b, e, clamp, hub_w, length, joint, amax)
+            if modal is not None:
+                e, joint, amax, sd_hub, sd_tip = modal
+                d_clamp = float(clamp @ e)
         n = np.array([-e[1], e[0]])
         clamp = d_clamp * e
-        sd_hub = joint.rotation_sd_rad
         if math.isfinite(joint.hub_width):
             hub_w = joint.hub_width
         fit = joint.fit
@@ -223,10 +279,23 @@ class Measurer:
                 f"beam width {width * 1e3:.1f} mm in the image disagrees with the "
                 f"calibration's {w_beam * 1e3:.1f} mm"
             )
-        if blur > self.max_blur_px:
+        # A beam is a smooth curve: the edges' residuals from its fitted shape are the
+        # image noise, correlated from one scan line to the next only through the
+        # noise's own reach (up to 0.54 on every bench set). Residuals that run together
+        # (a shifted image block of a damaged JPEG, an occlusion) are a shape the beam
+        # does not have.
+        if poly_fit.outlier_fraction > _MAX_OUTLIER_FRACTION:
             raise FrameFailure(
-                f"motion blur: beam edges spread {blur:.1f} px ({blur * px_m * 1e3:.1f} mm of "
-                f"smear in the plane; measured up to {self.max_blur_px:.0f} px)"
+                f"the beam's edges leave any smooth beam shape at "
+                f"{poly_fit.outlier_fraction:.0%} of their points (outliers beyond "
+                f"{TUKEY_C:.1f} sigma): damaged or occluded frame?"
+            )
+        if poly_fit.edge_rho > self.max_edge_correlation:
+            raise FrameFailure(
+                f"the beam's edges depart from a smooth beam in runs (residuals "
+                f"{poly_fit.rms * 1e3:.2f} mm RMS, correlated {poly_fit.edge_rho:.2f} from "
+                "line to line): "
+                "damaged or occluded frame?"
             )
         # The clamped prior's check: a hub or beam mis-measured shows as a slope at the
         # root, beyond what the edges' noise explains (a noisy frame's slope is as
@@ -245,8 +314,7 @@ class Measurer:
                 f"{length * 1e3:.0f} mm (occluded or out of view?)"
             )
         # Predicted noise of the tip's lateral deflection: the centre line's uncertainty
-        # at its end, the axis's (fitted with it) included.
-        sd_tip = fit.tip_sd
+        # at its end, the axis's (fitted with it) included (``sd_tip`` above).
         if sd_tip > self.max_tip_std_m:
             raise FrameFailure(
                 f"too noisy: tip lateral uncertainty {sd_tip * 1e3:.2f} mm "
@@ -281,6 +349,71 @@ class Measurer:
             blur_px=blur,
             method="default",
         )
+
+    def _modal(
+        self,
+        pa: NDArray[np.float64],
+        pb: NDArray[np.float64],
+        hub_a: NDArray[np.float64],
+        hub_b: NDArray[np.float64],
+        e: NDArray[np.float64],
+        clamp: NDArray[np.float64],
+        hub_w: float,
+        length: float,
+        poly: JointFit,
+        amax_poly: float,
+    ) -> tuple[NDArray[np.float64], JointFit, float, float, float] | None:
+        """The axis and the shape fitted in the cantilever's mode space, starting from the
+        polynomial fit's axis ``e``: (axis, fit, amax, hub sd, tip sd), or None when the
+        modal fit fails or disagrees with the polynomial one (``poly``) beyond 3 standard
+        uncertainties of the difference on the hub angle or the tip (the polynomial's
+        variance less the modal one's: the difference of an efficient and a consistent
+        estimator, Hausman's test). The stated uncertainties include the difference."""
+        e0 = e
+        joint: JointFit | None = None
+        amax = amax_poly
+        for _ in range(4):
+            n = np.array([-e[1], e[0]])
+            d_clamp = float(clamp @ e)
+            on_axis = d_clamp * e
+            la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
+            amax = float(max(la[:, 0].max(), lb[:, 0].max()))
+            ha = np.column_stack([(hub_a - on_axis) @ e, (hub_a - on_axis) @ n])
+            hb = np.column_stack([(hub_b - on_axis) @ e, (hub_b - on_axis) @ n])
+            res = fit_clamped_joint(
+                la,
+                lb,
+                ha,
+                hb,
+                self.poly_degree,
+                amax,
+                d_clamp,
+                modes=self.shape_modes,
+                beam_length=length,
+                along=poly.fit.centre,
+            )
+            if isinstance(res, str):
+                return None
+            joint = res
+            c, sn = math.cos(res.rotation_rad), math.sin(res.rotation_rad)
+            e = np.array([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
+            if abs(res.rotation_rad) < _MODAL_TURN_RAD:
+                break
+        if joint is None or not joint.shape_chi2 <= _chi2_999(joint.shape_dof):
+            return None
+        gap = math.asin(max(-1.0, min(1.0, float(e0[0] * e[1] - e0[1] * e[0]))))
+        var_gap = poly.rotation_sd_rad**2 - joint.rotation_sd_rad**2
+        tip_m = float(joint.fit.centre(np.array([amax]))[0])
+        tip_p = float(poly.fit.centre(np.array([amax_poly]))[0])
+        d_tip = tip_m - tip_p
+        var_tip = poly.fit.tip_sd**2 - joint.fit.tip_sd**2
+        if var_gap <= 0 or var_tip <= 0:
+            return None
+        if gap * gap > 9.0 * var_gap or d_tip * d_tip > 9.0 * var_tip:
+            return None
+        sd_hub = math.hypot(joint.rotation_sd_rad, gap)
+        sd_tip = math.hypot(joint.fit.tip_sd, d_tip)
+        return e, joint, amax, sd_hub, sd_tip
 
     def _strip_points(
         self,
@@ -329,11 +462,11 @@ class Measurer:
         n: NDArray[np.float64],
         hub_w: float,
         w_beam: float,
-    ) -> tuple[tuple[NDArray, NDArray] | None, tuple[NDArray, NDArray], float]:
+    ) -> tuple[tuple[NDArray, NDArray] | None, tuple[NDArray, NDArray], NDArray[np.float64]]:
         """Edge points (plane, m) of the hub (past both its faces, along the rough axis;
         None when it is too short to show any clear of them) and of the beam (along its
         rough centre line, from past the shoulders to short of the tip), the two strips
-        scanned in one pass; and the beam edges' median ramp width (px)."""
+        scanned in one pass; and the beam edges' ramp widths (px)."""
         hub_len = float((clamp - back) @ e)
         with_hub = hub_len - 2 * _END_MARGIN_PX * self.px_m >= 8 * self.px_m
         # A scan line (a pixel row or column) crosses the hub's two edges up to a hub
@@ -357,11 +490,83 @@ class Measurer:
         beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
         if not with_hub:
             ((pa, pb, spread),) = self._strip_points(image, [(beam_line, 0.5 * w_beam)])
-            return None, (pa, pb), median(spread)
+            return None, (pa, pb), spread
         (ha, hb, _), (pa, pb, spread) = self._strip_points(
             image, [(hub_line, 0.5 * hub_w), (beam_line, 0.5 * w_beam)]
         )
-        return (ha, hb), (pa, pb), median(spread)
+        return (ha, hb), (pa, pb), spread
+
+    def _centroid_points(
+        self,
+        image: NDArray[np.uint8],
+        rough: Rough,
+        clamp: NDArray[np.float64],
+        e: NDArray[np.float64],
+        n: NDArray[np.float64],
+        hub_w: float,
+        w_beam: float,
+        smear_px: float,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """A smeared beam's centre points (plane, m): the centroids of its light on cuts
+        along its local normal every 2 px, sampled every half pixel in the plane, the
+        background the median of each cut's ends (a time-average's centroid is the
+        time-averaged centre: mid-exposure for a motion nearly linear over it). Given as
+        two interleaved "edges" half the beam's width either side across the hub axis,
+        which is how the centre-line fit sees edges (each centroid used once)."""
+        px_m = self.px_m
+        reach_m = 1.5 * smear_px * px_m + 0.5 * w_beam + 3 * px_m
+        if smear_px > self.max_smear_px:
+            raise FrameFailure(
+                f"motion blur: beam edges spread up to {smear_px:.0f} px "
+                f"({smear_px * px_m * 1e3:.0f} mm of smear in the plane; measured up to "
+                f"{self.max_smear_px:.0f} px)"
+            )
+        rel = rough.beam - clamp
+        a, b = rel @ e, rel @ n
+        order = np.argsort(a)
+        a, b = a[order], b[order]
+        a0 = self._beam_start(hub_w)
+        a1 = float((rough.tip - clamp) @ e) - 0.6 * w_beam - 4 * px_m
+        aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * px_m))))
+        bq = np.interp(aq, a, b)
+        # Cuts across the beam along its local normal, sampled evenly in the plane (so the
+        # centroid is the plane's; a cut oblique to a band whose smear grows along the
+        # beam would see one side wider than the other).
+        th = np.arctan(np.gradient(bq, aq))
+        nl = np.column_stack([-np.sin(th), np.cos(th)])  # hub frame (a, b)
+        t = np.arange(-reach_m, reach_m + 1e-12, 0.5 * px_m)
+        ca = aq[:, None] + t[None, :] * nl[:, 0:1]
+        cb = bq[:, None] + t[None, :] * nl[:, 1:2]
+        pts = clamp + ca.reshape(-1, 1) * e[None, :] + cb.reshape(-1, 1) * n[None, :]
+        prof = bilinear(image, self.calibration.to_px(pts)).reshape(ca.shape)
+        ok_line = np.all(np.isfinite(prof), axis=1)
+        prof, aq, bq, nl = prof[ok_line], aq[ok_line], bq[ok_line], nl[ok_line]
+        if len(prof) < 20:
+            raise FrameFailure("too few cuts across the smeared beam inside the image")
+        m_edge = max(3, int(4 * px_m / (0.5 * px_m)))
+        level = np.median(np.concatenate([prof[:, :m_edge], prof[:, -m_edge:]], axis=1), axis=1)
+        excess = prof - level[:, None]
+        # Re-centred once: the window then holds the light evenly about its centroid.
+        half_n = len(t) // 2 - m_edge
+        cen = np.zeros(len(prof))
+        mass = np.ones(len(prof))
+        idx = np.arange(len(t))[None, :]
+        for _ in range(2):
+            mid = np.round(cen / (0.5 * px_m)).astype(np.intp) + len(t) // 2
+            inside = np.abs(idx - mid[:, None]) <= half_n
+            ex = np.where(inside, excess, 0.0)
+            mass = ex.sum(axis=1)
+            cen = np.where(mass > 0, (ex * t[None, :]).sum(axis=1) / np.where(mass > 0, mass, 1), 0)
+        keep = mass > 0.35 * median(mass)
+        if keep.sum() < 20:
+            raise FrameFailure("too few cuts across the smeared beam")
+        ac = aq + cen * nl[:, 0]
+        bc = bq + cen * nl[:, 1]
+        ac, bc = ac[keep], bc[keep]
+        ac, bc = ac[: 2 * (len(ac) // 2)], bc[: 2 * (len(bc) // 2)]  # pair up point by point
+        cen_m = clamp + ac[:, None] * e[None, :] + bc[:, None] * n[None, :]
+        half = 0.5 * w_beam * n[None, :]
+        return cen_m[0::2] + half, cen_m[1::2] - half
 
     def _beam_start(self, hub_w: float) -> float:
         """Distance from the clamp (m) where the beam's edges start: scan lines nearer
@@ -396,7 +601,7 @@ class Measurer:
         clamp: NDArray[np.float64],
         e: NDArray[np.float64],
         n: NDArray[np.float64],
-        centre: CentreLine,
+        centre: CentreLine | ModalCentreLine,
         amax: float,
         w_beam: float,
     ) -> tuple[float, float]:

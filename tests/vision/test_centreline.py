@@ -149,3 +149,120 @@ def test_stated_axis_and_tip_uncertainties_match_the_scatter() -> None:
         ratio = float(np.std(err) / np.mean(sd))
         assert 0.8 < ratio < 1.2, ratio
     assert np.mean(sd_axis) < 0.95 * np.mean(sd_root)
+
+
+# -- the cantilever's mode space -----------------------------------------------------
+def test_cantilever_modes_are_clamped_and_free() -> None:
+    """beta_i L are the roots of cos cosh = -1 (Blevins' table: 1.87510, 4.69409,
+    7.85476, 10.99554, 14.13717); each shape has w = w' = 0 at the clamp and zero
+    moment and shear (w'' = w''' = 0) at the free end, and they are orthonormal."""
+    from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
+
+    beta = np.array(cantilever_eigenvalues(5))
+    np.testing.assert_allclose(beta, [1.87510, 4.69409, 7.85476, 10.99554, 14.13717], atol=6e-6)
+    np.testing.assert_allclose(np.cos(beta) * np.cosh(beta), -1.0, atol=1e-9)
+    x = np.linspace(0.0, 1.0, 20001)
+    h = x[1]
+    phi, dphi = cantilever_modes_t(x, 5), cantilever_modes_t(x, 5, 1)
+    np.testing.assert_allclose(phi[:, 0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(dphi[:, 0], 0.0, atol=1e-12)
+    # w'' and w''' at the free end by one-sided differences of w' (error ~ h beta^3).
+    d2 = (3 * dphi[:, -1] - 4 * dphi[:, -2] + dphi[:, -3]) / (2 * h)
+    d3 = (dphi[:, -1] - 2 * dphi[:, -2] + dphi[:, -3]) / h**2
+    assert np.all(np.abs(d2) < 1e-3 * beta**2), d2
+    assert np.all(np.abs(d3) < 1e-2 * beta**3), d3
+    gram = np.trapezoid(phi[:, None, :] * phi[None, :, :], x, axis=2)
+    np.testing.assert_allclose(gram, np.eye(5), atol=1e-6)
+
+
+def _material_edges(pose, rng, sigma_m, n=700):
+    """Edge points of a rendered-truth pose (lateral at arc length, inextensible)."""
+    s = pose.stations_m
+    lon = s + pose.longitudinal_m
+    a = np.linspace(0.03, 0.81, n)
+    b = np.interp(a, lon, pose.lateral_m)
+    left = np.column_stack([a, b + W_M / 2 + sigma_m * rng.standard_normal(n)])
+    right = np.column_stack([a, b - W_M / 2 + sigma_m * rng.standard_normal(n)])
+    return left, right, (lambda q: np.interp(q, lon, pose.lateral_m))
+
+
+def _load_pose(rng, tip_m=0.035):
+    """A reciprocating cantilever's shape: the static response to its inertial load, the
+    hub's acceleration's (linear from the pivot) and its vibration's (mode i's shape
+    times beta_i^4, modes 1-3), integrated by the renderer from the free end."""
+    from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
+    from vision.synthetic.scene import BeamPose
+
+    amp = rng.uniform(-1, 1, 3) * np.array([1.0, 0.15, 0.04])
+    accel = rng.uniform(-1, 1)
+    beta4 = np.array(cantilever_eigenvalues(3)) ** 4
+
+    def load(s):
+        x = s / L_M
+        return 8.0 * accel * (CLAMP_M / L_M + x) + (amp * beta4) @ cantilever_modes_t(x, 3)
+
+    return BeamPose.from_load(0.0, L_M, load, tip_m)
+
+
+def _joint_modes(left, right, trial_rad, modes=4):
+    turn = trial_rad
+    empty = np.zeros((0, 2))
+    for _ in range(8):
+        pts = [_turned(p, turn) for p in (left, right)]
+        fit = fit_clamped_joint(*pts, empty, empty, 8, 0.81, CLAMP_M, modes=modes, beam_length=L_M)
+        assert not isinstance(fit, str)
+        turn += fit.rotation_rad
+        if abs(fit.rotation_rad) < 1e-13:
+            break
+    return fit, turn
+
+
+def test_a_loaded_cantilevers_shape_and_axis_are_recovered_by_the_modes() -> None:
+    """The renderer's physical shapes (the response to the inertial load, integrated from
+    the free end: not built from modes) lie in four modes to a micrometre: noise-free edges
+    seen from an axis 0.2 deg off give the axis back to 1.5e-5 rad."""
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        pose = _load_pose(rng)
+        left, right, truth = _material_edges(pose, rng, 0.0)
+        fit, turn = _joint_modes(left, right, math.radians(0.2))
+        # What four modes leave of the hub acceleration's static response (its modal
+        # series converges as beta^-5) turns the axis by up to ~1e-5 rad, a fifth of
+        # the noise's on 0.03 mm edges (test below); the shape to a micrometre.
+        assert abs(turn) < 1.5e-5, turn
+        a = np.linspace(0.03, 0.81, 60)
+        err = np.max(np.abs(fit.fit.centre(a) - truth(a)))
+        assert err < 1.5e-5 * (0.81 + CLAMP_M) + 1e-6, err
+        assert fit.shape_dof == 7
+
+
+def test_modal_uncertainty_matches_the_scatter_and_the_shape_test_holds() -> None:
+    """120 noisy draws of physical shapes: the modal axis and tip scatter as stated, at
+    about half the polynomial's axis uncertainty or less, and the shape test's statistic is
+    chi-squared with its degrees of freedom (mean 7, 0.999 quantile 24.3). A shape
+    without a free end (the tip-load cubic's shear) fails the test."""
+    rng = np.random.default_rng(6)
+    sigma = 3e-5
+    axis, sd_axis, tip, sd_tip, chi2, sd_poly = [], [], [], [], [], []
+    for _ in range(120):
+        pose = _load_pose(rng)
+        left, right, truth = _material_edges(pose, rng, sigma)
+        fit, turn = _joint_modes(left, right, 0.0)
+        axis.append(turn)
+        sd_axis.append(fit.rotation_sd_rad)
+        tip.append(float(fit.fit.centre(np.array([0.81]))[0] - truth(0.81)))
+        sd_tip.append(fit.fit.tip_sd)
+        chi2.append(fit.shape_chi2)
+        poly = fit_clamped_joint(left, right, np.zeros((0, 2)), np.zeros((0, 2)), 8, 0.81, CLAMP_M)
+        assert not isinstance(poly, str)
+        sd_poly.append(poly.rotation_sd_rad)
+    for err, sd in ((axis, sd_axis), (tip, sd_tip)):
+        ratio = float(np.std(err) / np.mean(sd))
+        assert 0.8 < ratio < 1.2, ratio
+    assert np.mean(sd_axis) < 0.6 * np.mean(sd_poly)
+    # chi2(7): mean 7, sd of the mean of 120 ~ 0.34.
+    assert 6.0 < np.mean(chi2) < 8.0, np.mean(chi2)
+    assert np.max(chi2) < 30.0
+    left, right = _edges(_static_tip_load, rng, sigma)
+    fit, _ = _joint_modes(left, right, 0.0)
+    assert fit.shape_chi2 > 24.3, fit.shape_chi2  # beyond chi2(7)'s 0.999 quantile

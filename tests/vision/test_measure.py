@@ -233,3 +233,65 @@ def test_a_smear_beyond_what_is_measured_is_refused_with_its_size(vt) -> None:
         assert abs(_errors(m, frame.truth)[1]) <= 3 * m.tip_lateral_std_m * 1e3
     else:
         assert "motion blur" in m.reason and "mm of smear" in m.reason, m.reason
+
+
+def test_a_cantilevers_shape_on_a_short_hub_is_measured_through_its_modes(vt) -> None:
+    """The short clamp block again, the beam now bent as a cantilever is (the response to
+    its inertial load: zero moment and shear at the free end). The modes hold the shape,
+    so the axis comes from the root with about a third of the generic polynomial's
+    noise: the hub angle within 0.01 deg (3 sigma of the ~0.003 deg the bench sets
+    show) and inside 3 stated standard uncertainties, every frame."""
+    from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
+
+    spec = vt.make_spec(
+        noise_dn=2.0,
+        seed=23,
+        hub_length_m=0.068,
+        hub_width_m=0.051,
+        pose=CameraPoseConfig(tilt_rad=math.radians(11.0)),
+    )
+    beta4 = np.array(cantilever_eigenvalues(3)) ** 4
+    for hub_deg, amp, accel, peak in (
+        (252.0, (1.0, 0.1, -0.03), 0.5, 0.03),
+        (288.0, (-0.6, 0.15, 0.02), -1.0, -0.025),
+        (322.0, (0.3, -0.12, 0.04), 0.8, 0.02),
+    ):
+
+        def load(s, amp=amp, accel=accel):
+            x = s / vt.L_M
+            return 8 * accel * (0.01 + x) + (np.array(amp) * beta4) @ cantilever_modes_t(x, 3)
+
+        pose = BeamPose.from_load(math.radians(hub_deg), vt.L_M, load, peak)
+        frame = render_frame(spec, [pose])
+        m = Measurer(vt.truth_calibration(frame.truth)).measure(frame.image)
+        assert m.ok, m.reason
+        e = _errors(m, frame.truth)
+        assert abs(e[0]) <= 3 * math.degrees(m.hub_angle_std_rad), (e, m.hub_angle_std_rad)
+        assert abs(e[1]) <= 3 * m.tip_lateral_std_m * 1e3, (e, m.tip_lateral_std_m)
+        assert abs(e[0]) < 0.01 and abs(e[1]) < 0.15, e
+
+
+@pytest.mark.slow
+def test_a_20_mm_smear_is_measured_at_mid_exposure_and_a_wider_one_refused(vt) -> None:
+    """The tip crossing 20 mm during the exposure (hub turning, beam vibrating): the beam's
+    light, not its edges, gives the centre line, whose time-average is the mid-exposure
+    one; measured within 3 stated standard uncertainties and 0.15 mm (the issue's
+    target). With the measurable smear set below what the frame shows, it is refused and
+    the reason gives the smear."""
+    from vision.synthetic.scene import BeamMotion
+
+    spec = vt.make_spec(noise_dn=2.0, seed=33, pose=CameraPoseConfig(tilt_rad=math.radians(14)))
+    pose = BeamPose.from_load(math.radians(283), vt.L_M, lambda s: 1.0 + 0.3 * s / vt.L_M, 0.025)
+    x = pose.stations_m / vt.L_M
+    rate = 1.0 * x**2 * (6 - 4 * x + x**2) / 3  # the beam's own vibration, m/s
+    motion = BeamMotion(pose, 1.8, rate)
+    exposure = 0.020 / motion.tip_speed_m_s(0.008)
+    frame = render_frame(spec, motion.exposure_poses(exposure, 0.008))
+    m = Measurer(vt.truth_calibration(frame.truth)).measure(frame.image)
+    assert m.ok, m.reason
+    e = _errors(m, frame.truth)
+    assert m.blur_px > 6.0  # measured from the light, not the edges
+    assert abs(e[1]) <= 3 * m.tip_lateral_std_m * 1e3 and abs(e[1]) < 0.15, (e, m.tip_lateral_std_m)
+    assert abs(e[0]) <= 3 * math.degrees(m.hub_angle_std_rad), (e, m.hub_angle_std_rad)
+    strict = Measurer(vt.truth_calibration(frame.truth), max_smear_px=8.0).measure(frame.image)
+    assert not strict.ok and "motion blur" in strict.reason and "mm of smear" in strict.reason

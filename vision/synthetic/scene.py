@@ -89,6 +89,42 @@ class BeamPose:
         y = np.concatenate([[0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * ds)])
         return cls(hub_angle_rad, s, y, x - s)
 
+    @classmethod
+    def from_load(
+        cls,
+        hub_angle_rad: float,
+        length_m: float,
+        load: Any,
+        peak_m: float,
+        n: int = 2001,
+    ) -> BeamPose:
+        """The shape of a uniform clamped-free (Euler-Bernoulli) beam under the lateral
+        load per length ``load(s)`` (a callable of stations, m; any unit: the shape is
+        scaled so that its largest deflection is ``peak_m``, sign included). The shear
+        and the moment are integrated from the free end, where both vanish, the slope
+        (the moment over EI) from the clamp, where it vanishes; the slope is the angle of
+        an inextensible centre line (:meth:`from_slope`). A vibrating beam's shape at an
+        instant is the static response to its inertial load, so a smooth load gives a
+        physical shape; shapes built otherwise need not have a free end."""
+        s = np.linspace(0.0, length_m, n)
+        q = np.asarray(load(s), dtype=np.float64) * np.ones(n)
+
+        def from_end(f: NDArray[np.float64]) -> NDArray[np.float64]:
+            seg = 0.5 * (f[1:] + f[:-1]) * np.diff(s)
+            return np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
+
+        def from_root(f: NDArray[np.float64]) -> NDArray[np.float64]:
+            return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(s))])
+
+        moment = from_end(from_end(q))  # M(s) = int_s^L (x - s) q(x) dx
+        slope = from_root(moment)
+        w = from_root(slope)
+        peak = float(w[np.argmax(np.abs(w))])
+        if peak == 0.0 or not math.isfinite(peak):
+            raise ParameterError("load", "bends the beam by nothing")
+        slope *= peak_m / peak
+        return cls.from_slope(hub_angle_rad, length_m, lambda x: np.interp(x, s, slope), n=n)
+
     def at(self, stations_m: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(lateral, longitudinal) deflections at ``stations_m``, interpolated."""
         q = np.asarray(stations_m, dtype=np.float64)

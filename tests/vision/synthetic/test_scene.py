@@ -60,3 +60,40 @@ def test_an_exposure_samples_the_motion_at_slice_midpoints(vt) -> None:
         BeamMotion(pose, 0.0, np.zeros(3))
     with pytest.raises(ValueError, match="exposure_s"):
         motion.exposure_poses(-1.0, 0.008)
+
+
+def _linear_deflection(pose: BeamPose) -> tuple[np.ndarray, np.ndarray]:
+    """The linear theory's deflection int theta of an inextensible pose, at its stations."""
+    s = pose.stations_m
+    th = np.arctan2(np.gradient(pose.lateral_m, s), np.gradient(s + pose.longitudinal_m, s))
+    return s, np.concatenate([[0.0], np.cumsum(0.5 * (th[1:] + th[:-1]) * np.diff(s))])
+
+
+def test_a_uniform_load_bends_the_beam_into_the_closed_form(vt) -> None:
+    """Under a uniform load a clamped-free Euler-Bernoulli beam deflects as
+    w = w_L x^2 (6 - 4 x + x^2) / 3 (x = s / L; Timoshenko's table): the integration
+    from the free end gives it to the trapezoid rule's error (h^2, ~1e-7 here)."""
+    pose = BeamPose.from_load(0.0, vt.L_M, lambda s: np.ones_like(s), 0.03)
+    s, w = _linear_deflection(pose)
+    x = s / vt.L_M
+    np.testing.assert_allclose(w, 0.03 * x**2 * (6 - 4 * x + x**2) / 3, atol=3e-8)
+    with pytest.raises(ValueError, match="load"):
+        BeamPose.from_load(0.0, vt.L_M, lambda s: np.zeros_like(s), 0.03)
+
+
+def test_a_modes_inertial_load_gives_the_mode_back(vt) -> None:
+    """A vibrating cantilever's mode i carries the inertial load beta_i^4 phi_i: its
+    static response is phi_i itself. The integration from the free end (the renderer)
+    and the closed-form mode shapes (the measurement's basis) agree to 1e-6 of the
+    shape's size: the two are written independently."""
+    from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
+
+    L = vt.L_M
+    for i, beta in enumerate(cantilever_eigenvalues(4)):
+        pose = BeamPose.from_load(
+            0.0, L, lambda s, i=i: cantilever_modes_t(s / L, i + 1)[i], 0.01, n=8001
+        )
+        s, w = _linear_deflection(pose)
+        phi = cantilever_modes_t(s / L, i + 1)[i]
+        phi *= 0.01 / phi[np.argmax(np.abs(phi))]
+        assert np.max(np.abs(w - phi)) < 1e-8 * (1 + beta**2), (i, np.max(np.abs(w - phi)))
