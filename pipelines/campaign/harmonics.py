@@ -59,8 +59,20 @@ def fit_fundamental(
     t_s: FloatArray, y: FloatArray, f_hz: float, *, n_harmonics: int = N_HARMONICS
 ) -> Fundamental:
     """Amplitude and phase of ``y(t_s)``'s component at ``f_hz`` (non-finite samples
-    dropped); NaN when fewer samples than twice the parameters or no full period."""
+    dropped); NaN when fewer samples than twice the parameters or no full period.
+
+    Only the harmonics the samples resolve are fitted: those below the Nyquist frequency
+    of the median sample spacing (15 frames/s resolve three harmonics of a 2.35 Hz crank,
+    not five: the others alias onto the basis), and no more than half as many parameters
+    as samples (frames refused leave gaps)."""
     t, v = _finite(t_s, y)
+    if t.size >= 2:
+        fs_hz = 1.0 / float(np.median(np.diff(t)))
+        if math.isfinite(f_hz) and f_hz > 0 and math.isfinite(fs_hz):
+            n_harmonics = min(n_harmonics, math.ceil(0.5 * fs_hz / f_hz) - 1)
+    n_harmonics = min(n_harmonics, (t.size // 2 - 1) // 2)
+    if n_harmonics < 1:
+        return Fundamental.missing()
     p = 1 + 2 * n_harmonics
     if not (math.isfinite(f_hz) and f_hz > 0) or t.size < 2 * p or np.ptp(t) * f_hz < 1.0:
         return Fundamental.missing()
