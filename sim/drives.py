@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -173,6 +173,26 @@ def _gcv_smoothing(t: FloatArray, y: FloatArray) -> float:
     return math.exp(brentq(miss, lo, hi, xtol=1e-3))
 
 
+def finite_trace(
+    t_s: ArrayLike, angle_rad: ArrayLike, n_min: int
+) -> tuple[NDArray[Any], NDArray[Any]]:
+    """A measured trace's finite samples, checked: ``t_s`` finite and strictly increasing,
+    ``angle_rad`` of its length with at least ``n_min`` finite values (NaN marks a gap).
+    Raises ``SimInputError``."""
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    y = np.asarray(angle_rad, dtype=np.float64).reshape(-1)
+    if t.shape != y.shape:
+        raise SimInputError("angle_rad", f"must have the length of t_s, got {y.size} and {t.size}")
+    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
+        raise SimInputError("t_s", "must be finite and strictly increasing")
+    ok = np.isfinite(y)
+    if ok.sum() < n_min:
+        raise SimInputError(
+            "angle_rad", f"needs at least {n_min} finite samples, got {int(ok.sum())}"
+        )
+    return t[ok], y[ok]
+
+
 class TraceDrive:
     """A measured hub-angle trace (e.g. the 400 Hz potentiometer), smoothed.
 
@@ -198,26 +218,14 @@ class TraceDrive:
     ) -> None:
         from scipy.interpolate import make_smoothing_spline
 
-        t = np.asarray(t_s, dtype=float).reshape(-1)
-        y = np.asarray(angle_rad, dtype=float).reshape(-1)
-        if t.shape != y.shape:
-            raise SimInputError(
-                "angle_rad", f"must have the length of t_s, got {y.size} and {t.size}"
-            )
-        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
-            raise SimInputError("t_s", "must be finite and strictly increasing")
-        ok = np.isfinite(y)
-        if ok.sum() < 5:
-            raise SimInputError(
-                "angle_rad", f"needs at least 5 finite samples, got {int(ok.sum())}"
-            )
+        t, y = finite_trace(t_s, angle_rad, 5)
         if smoothing is not None and (not np.isfinite(smoothing) or smoothing < 0.0):
             raise SimInputError(
                 "smoothing", f"must be a non-negative number or None, got {smoothing!r}"
             )
-        self.t_min_s = float(t[ok][0])
-        self.t_max_s = float(t[ok][-1])
-        tp, yp = _pad_ends(t[ok], y[ok])
+        self.t_min_s = float(t[0])
+        self.t_max_s = float(t[-1])
+        tp, yp = _pad_ends(t, y)
         if smoothing is None:
             smoothing = _gcv_smoothing(tp, yp)
         self.smoothing = smoothing

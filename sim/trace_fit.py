@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim.drives import finite_trace
 from sim.errors import SimInputError
 
 FloatArray = NDArray[np.float64]
@@ -251,21 +252,7 @@ class FittedTraceDrive:
     """
 
     def __init__(self, t_s: ArrayLike, angle_rad: ArrayLike) -> None:
-        t = np.asarray(t_s, dtype=float).reshape(-1)
-        y = np.asarray(angle_rad, dtype=float).reshape(-1)
-        if t.shape != y.shape:
-            raise SimInputError(
-                "angle_rad", f"must have the length of t_s, got {y.size} and {t.size}"
-            )
-        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
-            raise SimInputError("t_s", "must be finite and strictly increasing")
-        ok = np.isfinite(y)
-        n_min = 2 * (SPLINE_DEGREE + 1)
-        if ok.sum() < n_min:
-            raise SimInputError(
-                "angle_rad", f"needs at least {n_min} finite samples, got {int(ok.sum())}"
-            )
-        t, y = t[ok], y[ok]
+        t, y = finite_trace(t_s, angle_rad, 2 * (SPLINE_DEGREE + 1))
         self.t_min_s = float(t[0])
         self.t_max_s = float(t[-1])
         self._t_ref_s = 0.5 * (self.t_min_s + self.t_max_s)
