@@ -245,7 +245,7 @@ def radau5(
                 raise IntegrationError("radau5", t, "the Jacobian is not finite")
         rejected = False
         while True:
-            min_step = 10 * abs(np.nextafter(t, math.inf) - t)
+            min_step = 10.0 * (math.nextafter(t, math.inf) - t)
             if h < min_step:
                 raise IntegrationError("radau5", t, f"step size {h:.3g} s underflows")
             t_new = t + h
@@ -260,8 +260,8 @@ def radau5(
                 z = np.zeros((3, n))
             else:
                 # extrapolate the last collocation polynomial to the new stages
-                x = (h * C + h_prev) / h_prev
-                z = (q_prev @ np.array([x, x * x, x * x * x])).T + (y_prev - y)[None, :]
+                x = (h / h_prev) * C + 1.0
+                z = (q_prev @ (x ** _POWERS)).T + (y_prev - y)
             scale = atol + np.abs(y) * rtol
             if not full:
                 converged, n_iter, z, _rate = _newton(
@@ -292,7 +292,7 @@ def radau5(
             if fixed:
                 err = 0.0  # no error control at a fixed step
                 break
-            ze = (z.T @ E) / h
+            ze = (E @ z) * (1.0 / h)
             error = _filter(lu_r, f + ze)
             scale = atol + np.maximum(np.abs(y), np.abs(y_new)) * rtol
             err = _norm(error / scale)
