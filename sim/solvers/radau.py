@@ -261,7 +261,7 @@ def radau5(
             else:
                 # extrapolate the last collocation polynomial to the new stages
                 x = (h / h_prev) * C + 1.0
-                z = (q_prev @ (x ** _POWERS)).T + (y_prev - y)
+                z = (q_prev @ (x**_POWERS)).T + (y_prev - y)
             scale = atol + np.abs(y) * rtol
             if not full:
                 converged, n_iter, z, _rate = _newton(
