@@ -169,7 +169,7 @@ def _spin_candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimR
 #: fixed-step radau5 rows of the damped scene, (elements, step s, Newton's tolerance): the
 #: step as Exudyn's rows fix theirs, chosen where the time error matches the mesh's
 #: spatial error (2 elements: 8e-5 spatial; Newton does not converge above ~0.03 s)
-_FIXED_STEPS = ((2, 0.025, 1e-4), (2, 0.03, 1e-3), (3, 0.025, 1e-4), (5, 0.015, 1e-6),
+_FIXED_STEPS = ((2, 0.025, 1e-4), (2, 0.03, 1e-3), (3, 0.025, 1e-4), (5, 0.015, 1e-5),
                 (6, 0.015, 1e-6), (8, 0.0125, 1e-6))  # fmt: skip
 _FIXED_STEPS_QUICK = ((2, 0.025, 1e-4),)
 
