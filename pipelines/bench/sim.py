@@ -10,6 +10,9 @@ extrapolation of 16 and 24 elements and printed below the table. The table gives
 model and setting, the wall time of the solve per simulated second and the maximum
 tip-lateral error over the last three drive cycles (reciprocating) or the whole run
 (spin-up), absolute and relative to the largest reference tip deflection in that window.
+On the damped scene radau5 also runs at fixed steps (``fixed_step_s``, no error control), the
+step chosen per mesh as Exudyn's rows choose theirs; those rows' errors are only the
+measured ones (``auto`` never picks a fixed step).
 
 If Exudyn is installed (the ``peers`` extra), its ANCF cable (:mod:`pipelines.bench.peers_exudyn`)
 runs on the same scenes in the same process. Its damping is strain-rate (Kelvin-Voigt)
