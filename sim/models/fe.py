@@ -199,8 +199,9 @@ def simulate_fe(
         no error estimate or step control (``rtol``, ``atol`` then only scale Newton's
         stopping test), as Exudyn's fixed-step integrators; the error is not estimated, so
         it is for studies and benchmarks that measure it (``bench sim``), not for ``auto``.
-        A Newton iteration that does not converge raises (at this scene's a1 EA, steps
-        above ~0.03 s do not).
+        A Newton iteration that does not converge raises (on the rig's beam and the
+        paper's drive, steps above ~0.03 s do not: the axial stiffness EA turns the
+        iterates' slope rotations into large spurious stretching forces).
 
     Returns
     -------
