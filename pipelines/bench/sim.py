@@ -10,6 +10,9 @@ extrapolation of 16 and 24 elements and printed below the table. The table gives
 model and setting, the wall time of the solve per simulated second and the maximum
 tip-lateral error over the last three drive cycles (reciprocating) or the whole run
 (spin-up), absolute and relative to the largest reference tip deflection in that window.
+On the damped scene radau5 also runs at fixed steps (``fixed_step_s``, no error control), the
+step chosen per mesh as Exudyn's rows choose theirs; those rows' errors are only the
+measured ones (``auto`` never picks a fixed step).
 
 If Exudyn is installed (the ``peers`` extra), its ANCF cable (:mod:`pipelines.bench.peers_exudyn`)
 runs on the same scenes in the same process. Its damping is strain-rate (Kelvin-Voigt)
@@ -166,6 +169,30 @@ def _spin_candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimR
     ]
 
 
+#: fixed-step radau5 rows of the damped scene, (elements, step s, Newton's tolerance): the
+#: step as Exudyn's rows fix theirs, chosen where the time error matches the mesh's
+#: spatial error (2 elements: 8e-5 spatial; Newton does not converge above ~0.03 s)
+_FIXED_STEPS = ((2, 0.025, 1e-4), (2, 0.03, 1e-3), (3, 0.025, 1e-4), (5, 0.015, 1e-5),
+                (6, 0.015, 1e-6), (8, 0.0125, 1e-6))  # fmt: skip
+_FIXED_STEPS_QUICK = ((2, 0.025, 1e-4),)
+
+
+def _damped_candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult]]]:
+    """The fixed-step rows, for the damped (reciprocating) scene only: undamped spin-ups
+    keep their fast modes, which a fixed step would have to resolve."""
+
+    def fixed(n: int, h: float, tol: float) -> Callable[[Scene], SimResult]:
+        return lambda s: simulate_fe(
+            s.beam, s.drive, s.t_s, n_elements=n, a0_per_s=s.damping[0], a1_s=s.damping[1],
+            rtol=tol, atol=tol, method="radau5", fixed_step_s=h,
+        )  # fmt: skip
+
+    return [
+        ("fe-corot radau5", f"{n} el., fixed h {h:g}, tol {tol:g}", fixed(n, h, tol))
+        for n, h, tol in (_FIXED_STEPS_QUICK if quick else _FIXED_STEPS)
+    ]
+
+
 def _reference_elements(scene: Scene, quick: bool) -> int:
     # damped full run: 12 elements, so that the 8-element row can show 1e-6 (the pair gives
     # the reference's own spatial error by Richardson, displacements converging as h^4)
@@ -309,8 +336,10 @@ def table_with_notes(quick: bool) -> tuple[list[Row], dict[str, float], list[str
     scenes = _scenes(quick)
     candidates = _candidates(quick)
     spin_only = _spin_candidates(quick)
+    damped_only = _damped_candidates(quick)
     n_spin = sum(s.damping[1] == 0.0 for s in scenes)
-    bar = Progress("bench sim", total=len(scenes) * (len(candidates) + 2) + n_spin * len(spin_only))
+    total = len(scenes) * (len(candidates) + 2) + n_spin * len(spin_only)
+    bar = Progress("bench sim", total=total + (len(scenes) - n_spin) * len(damped_only))
     for scene in scenes:
         # undamped spin-up: radau5 on three meshes, extrapolated (6 elements at rtol 1e-7
         # had left ~2e-4 of spatial error at 10 rad/s, hiding every error below it)
@@ -337,7 +366,7 @@ def table_with_notes(quick: bool) -> tuple[list[Row], dict[str, float], list[str
             Row(scene.name, "reference fe-corot", f"{label}, rtol {rtol_ref:g}",
                 ref.wall_time_s / duration, 0.0, 0.0)
         )  # fmt: skip
-        for model, setting, run_model in candidates + (spin_only if spin else []):
+        for model, setting, run_model in candidates + (spin_only if spin else damped_only):
             bar.update(1)
             res = run_model(scene)
             err, rel = _error(res, ref, scene.window)

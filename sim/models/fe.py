@@ -156,6 +156,7 @@ def simulate_fe(
     method: str = "auto",
     damping_law: str = "paper",
     curvature: str = "element",
+    fixed_step_s: float | None = None,
 ) -> SimResult:
     """Simulate the beam clamped to a hub whose rotation ``drive`` prescribes.
 
@@ -194,6 +195,13 @@ def simulate_fe(
         through the nodal values (:func:`recovered_curvature`, converges with the tip); then
         ``settings["curvature_fit_change"]`` holds the fit's change per gauge (relative
         to the gauge's largest strain; see :func:`recovered_curvature`).
+    fixed_step_s : ``method="radau5"`` only: every step this long (the last one shortened),
+        no error estimate or step control (``rtol``, ``atol`` then only scale Newton's
+        stopping test), as Exudyn's fixed-step integrators; the error is not estimated, so
+        it is for studies and benchmarks that measure it (``bench sim``), not for ``auto``.
+        A Newton iteration that does not converge raises (on the rig's beam and the
+        paper's drive, steps above ~0.03 s do not: the axial stiffness EA turns the
+        iterates' slope rotations into large spurious stretching forces).
 
     Returns
     -------
@@ -221,6 +229,10 @@ def simulate_fe(
         raise SimInputError("damping_law", f"{law!r} needs formulation 'corot', got {form!r}")
     if check_choice("curvature", curvature, CURVATURES) != "element" and form != "corot":
         raise SimInputError("curvature", f"{curvature!r} needs formulation 'corot', got {form!r}")
+    if fixed_step_s is not None:
+        fixed_step_s = check_positive("fixed_step_s", fixed_step_s)
+        if method != "radau5":
+            raise SimInputError("fixed_step_s", f"needs method 'radau5', got {method!r}")
     system = _make_system(form, beam, ne, drive, a0, a1, law)
     if initial_state is None:
         y0 = system.initial_state()
@@ -247,9 +259,10 @@ def simulate_fe(
         jac_stages=jac_stages,
         rhs_jac_stages=getattr(system, "rhs_jac_stages", None),
         second_order=SECOND_ORDER,
+        fixed_step_s=fixed_step_s,
     )
     lat, lon, strain = _deflections(system, traj.y, beam, stations, gauges)
-    extra: dict[str, Any] = {}
+    extra: dict[str, Any] = {} if fixed_step_s is None else {"fixed_step_s": fixed_step_s}
     if curvature == "recovered" and gauges.size:
         assert isinstance(system, AncfSystem)
         kappa, change = recovered_curvature(system, traj.y, gauges)

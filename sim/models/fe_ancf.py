@@ -408,6 +408,25 @@ class AncfSystem:
             self.minv_bt.reshape(self.nf, 4, npt).transpose(0, 2, 1).reshape(self.nf, -1)
         )
         self.eye = np.eye(self.nf)
+        # the right-hand side's rotating-frame terms as one product with [d; v] (2 nf, k):
+        # rows [M^-1 M_ff d; M^-1 M_J d; M^-1 M_J v] weighted by (Omega^2, -alpha, -2 Omega),
+        # plus the constant loads, minus a0 v
+        nf = self.nf
+        zero = np.zeros((nf, nf))
+        self._frame_map = np.block(
+            [[self.m_ff, zero], [self.minv_mj_ff, zero], [zero, self.minv_mj_ff]]
+        ).reshape(3, nf, 2 * nf)
+        self._frame_load = np.stack([self.m_e0, self.mj_e0, np.zeros(nf)])[:, :, None]
+        # the acceleration rows' constant and frame parts of the Jacobian, (nf, 2 nf) each,
+        # weighted by (1, Omega^2, -alpha, -2 Omega)
+        self._jac_frame = np.stack(
+            [
+                np.hstack([zero, -self.a0 * self.eye]),
+                np.hstack([self.m_ff, zero]),
+                np.hstack([self.minv_mj_ff, zero]),
+                np.hstack([zero, self.minv_mj_ff]),
+            ]
+        ).reshape(4, -1)
         # tangent assembly, element by element: K_e = sum_q B_q^T D_q B_q is one product of
         # the pointwise derivatives (rows: batch, element; columns: q, out, in) with
         # W[(q, a, b), (i, j)] = B[q, a, i] B[q, b, j] (the mesh is uniform), then a scatter
@@ -504,13 +523,11 @@ class AncfSystem:
         self, om: FloatArray, al: FloatArray, d: FloatArray, v: FloatArray, gen: FloatArray
     ) -> FloatArray:
         """(k, n_state) right-hand sides from the Gauss-point forces ``gen`` (4 P, k)."""
+        frame = self._frame_map @ np.concatenate([d, v]) + self._frame_load  # (3, nf, k)
         acc = (
-            -self.minv_bt @ gen
-            - (2.0 * om) * (self.minv_mj_ff @ v)
-            - al * (self.mj_e0[:, None] + self.minv_mj_ff @ d)
-            + (om * om) * (self.m_e0[:, None] + self.m_ff @ d)
-            - self.a0 * v
-        )
+            om * om * frame[0] - al * frame[1] - (2.0 * om) * frame[2]
+            - self.minv_bt @ gen - self.a0 * v
+        )  # fmt: skip
         return np.concatenate([v, acc]).T
 
     def rhs_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
@@ -555,12 +572,10 @@ class AncfSystem:
         kk = self.minv @ k_free.reshape(npts, ns, nf, nf)  # M^-1 dF/d(d), M^-1 dF/d(v)
         jac = np.zeros((npts, 2 * nf, 2 * nf))
         jac[:, :nf, nf:] = self.eye
-        jac[:, nf:, :nf] = (
-            -kk[:, 0] - al[:, None, None] * self.minv_mj_ff + (om * om)[:, None, None] * self.m_ff
-        )
-        jac[:, nf:, nf:] = -2.0 * om[:, None, None] * self.minv_mj_ff - self.a0 * self.eye
-        if ns == 2:
-            jac[:, nf:, nf:] -= kk[:, 1]
+        weights = np.stack([np.ones(npts), om * om, -al, -2.0 * om], axis=1)  # (k, 4)
+        acc = jac[:, nf:, :]
+        acc[...] = (weights @ self._jac_frame).reshape(npts, nf, 2 * nf)
+        acc[:, :, : ns * nf] -= kk.transpose(0, 2, 1, 3).reshape(npts, nf, ns * nf)
         return self._rhs_from_force(om, al, d, v, gen), jac
 
     def jac_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:

@@ -50,6 +50,7 @@ def integrate(
     jac_stages: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
     rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None = None,
     second_order: bool = False,
+    fixed_step_s: float | None = None,
 ) -> Trajectory:
     """Integrate ``dy/dt = rhs(t, y)`` from ``t_eval_s[0]`` and return ``y`` at ``t_eval_s``.
 
@@ -70,6 +71,8 @@ def integrate(
         "radau5" in place of the two where both are needed.
     second_order : ``y = [d, v]`` with ``d' = v``: "radau5" then solves Newton for the rates
         alone (:func:`sim.solvers.radau.radau5`); ignored by the other methods.
+    fixed_step_s : "radau5" only: every step this long, no error control (see
+        :func:`sim.solvers.radau.radau5`).
 
     Raises
     ------
@@ -82,10 +85,12 @@ def integrate(
     y_start = np.asarray(y0, dtype=float)
     if t.size == 1:
         return Trajectory(y_start[None, :].copy(), 0.0, 0, 0, 0)
+    if fixed_step_s is not None and method != "radau5":
+        raise SimInputError("fixed_step_s", f"needs method 'radau5', got {method!r}")
     if method == "radau5":
         return _radau5(
             rhs, jac, t, y_start, rtol, atol, first_step_s, rhs_stages, jac_stages,
-            rhs_jac_stages, second_order,
+            rhs_jac_stages, second_order, fixed_step_s,
         )  # fmt: skip
     kwargs: dict[str, object] = {"rtol": rtol, "atol": atol, "t_eval": t}
     kwargs["jac"] = jac
@@ -129,6 +134,7 @@ def _radau5(
     jac_stages: Callable[[FloatArray, FloatArray], FloatArray] | None,
     rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None,
     second_order: bool,
+    fixed_step_s: float | None,
 ) -> Trajectory:
     def pointwise(ts: FloatArray, ys: FloatArray) -> FloatArray:
         return np.stack([rhs(float(tk), yk) for tk, yk in zip(ts, ys, strict=True)])
@@ -144,5 +150,6 @@ def _radau5(
         jac_stages=jac_stages,
         rhs_jac_stages=rhs_jac_stages,
         second_order=second_order,
+        fixed_step_s=fixed_step_s,
     )
     return Trajectory(y, wall, stats.n_rhs, stats.n_jac, stats.n_lu, stats.n_steps)
