@@ -45,6 +45,8 @@ from sim.errors import SimInputError
 FloatArray = NDArray[np.float64]
 
 SPLINE_DEGREE = 5
+# aliases summed in spline_passband's denominator each side (sinc^12 beyond them: < 1e-16)
+SPLINE_ALIASES = 30
 # Candidate knot spacings, s: 20 ms (the trace's bandwidth far beyond the beam's second
 # mode, ~23 Hz) to 1 s (only a drift left for the spline).
 KNOT_SPACINGS_S = (0.02, 0.03, 0.04, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0)
@@ -150,6 +152,37 @@ def _noise_psd(t: FloatArray, resid: FloatArray, f_max_hz: float, n_fitted: int)
     psd = float(np.mean(pxx[band])) if band.any() else float(np.mean(pxx[1:]))
     dof = 2.0 * f_max_hz * float(t[-1] - t[0])
     return psd / max(1.0 - n_fitted / dof, 0.5)
+
+
+def spline_passband(f_hz: ArrayLike, spacing_s: float) -> FloatArray:
+    """The share of a sinusoid's power at ``f_hz`` that a least-squares spline of degree
+    :data:`SPLINE_DEGREE` with knots ``spacing_s`` apart keeps (dense samples, away from
+    the ends): the orthogonal projection onto the cardinal splines has the response
+    ``|b(v)|^2 / sum_j |b(v + j)|^2`` at ``v = f h``, with ``b(v) = sinc(v)^(k + 1)`` the
+    B-spline's Fourier transform (Unser, Aldroubi & Eden 1993). It is ~1 below
+    ``1 / (2 h)``, ~0 above, and its integral over ``f >= 0`` is ``1 / (2 h)``: the band
+    a spline of ``T / h`` coefficients fills."""
+    v = np.asarray(f_hz, dtype=float) * spacing_s
+    power = 2 * (SPLINE_DEGREE + 1)
+    alias = np.sum(
+        [np.sinc(v + j) ** power for j in range(-SPLINE_ALIASES, SPLINE_ALIASES + 1)], axis=0
+    )
+    return np.asarray(np.sinc(v) ** power / alias, dtype=float)
+
+
+def _white_psd_above(t: FloatArray, resid: FloatArray, band_hz: float) -> float:
+    """The residual's mean one-sided PSD (rad^2/Hz) between ``1.5 band_hz`` and a quarter
+    of the sample rate (Welch, 2 s segments): the noise's level beyond what a fit of
+    bandwidth ``band_hz`` took out of it, below the anti-alias filter's roll-off (the
+    DAQ's filter passes 0.375 of the rate), where the potentiometer's noise is white. NaN
+    when that band is empty."""
+    from scipy.signal import welch
+
+    dt = float(t[-1] - t[0]) / (t.size - 1)
+    grid = np.linspace(t[0], t[-1], t.size)
+    f, pxx = welch(np.interp(grid, t, resid), fs=1.0 / dt, nperseg=min(t.size, round(2.0 / dt)))
+    band = (f >= 1.5 * band_hz) & (f <= 0.25 / dt)
+    return float(np.mean(pxx[band])) if band.any() else math.nan
 
 
 def _harmonics_kept(
@@ -263,7 +296,8 @@ class FittedTraceDrive:
         spline, p_s, h_s, rss_s = _best_spline(t, y, 0)
         best_gcv = _gcv(rss_s, n, p_s) if spline is not None else math.inf
         self._omega = 0.0
-        # the harmonics' noise (see harmonic_uncertainty); NaN without harmonics
+        # the harmonics' noise (see harmonic_uncertainty); NaN without harmonics; with a
+        # spline on top, from the residual of both (below)
         self.coefficient_var_rad2 = math.nan
         self.dropped_power_rad2 = np.zeros(0)
         self._coef = np.zeros(1)  # the spline carries the mean
@@ -309,6 +343,20 @@ class FittedTraceDrive:
             "n_parameters": p_best,
             "residual_rms_rad": math.sqrt(rss_best / max(n - p_best, 1)),
         }
+        # the spline's noise (see spline_uncertainty); NaN without a spline
+        self.spline_noise_psd_rad2_hz = math.nan
+        if self._spline is not None:
+            resid = y - self._harmonics(t, 0) - self._spline(t)
+            band_hz = 0.5 / h_best
+            self.spline_noise_psd_rad2_hz = _white_psd_above(t, resid, band_hz)
+            if n_harm:
+                # the harmonics' residual held what the spline then took (a drifting
+                # crank): their noise is the pot's white noise, and the spline carries
+                # what lies beyond them within its band
+                self.coefficient_var_rad2 = self.spline_noise_psd_rad2_hz / (
+                    self.t_max_s - self.t_min_s
+                )
+                self.dropped_power_rad2 = np.zeros(0)
 
     def harmonic_uncertainty(self) -> tuple[float, int, float, FloatArray] | None:
         """What the fit leaves uncertain, for a harmonic fit (None for a spline alone):
@@ -319,6 +367,18 @@ class FittedTraceDrive:
         if self._n_harm == 0:
             return None
         return self._omega, self._n_harm, self.coefficient_var_rad2, self.dropped_power_rad2
+
+    def spline_uncertainty(self) -> tuple[float, float] | None:
+        """What the spline leaves uncertain (None without a spline): ``(h, S)``, its knot
+        spacing (s) and the noise's one-sided PSD ``S`` (rad^2/Hz) it was fitted through.
+
+        The spline passes the noise's PSD times :func:`spline_passband` (``p / T``
+        coefficients per second pass a variance ``S p / T``, as a band ``1 / (2 h)`` wide
+        would). ``S`` is measured on the residual above that band
+        (:func:`_white_psd_above`), where the spline took nothing out of the noise."""
+        if self._spline is None:
+            return None
+        return float(self.settings["knot_spacing_s"]), self.spline_noise_psd_rad2_hz
 
     def _check(self, t_s: ArrayLike) -> FloatArray:
         t = np.asarray(t_s, dtype=float)

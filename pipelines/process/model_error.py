@@ -35,11 +35,16 @@ from pipelines.process.frames import MeasuredFrame
 from sim.beam import BeamProperties
 from sim.modes import modal_integrals
 from sim.result import SimResult
-from sim.trace_fit import FittedTraceDrive
+from sim.trace_fit import FittedTraceDrive, spline_passband
 
 IMAGE_SHARE = 0.2
 # modes of the linear transfer function the drive's uncertainty is carried through
 DRIVE_ERROR_MODES = 4
+# the spline's passed noise is integrated up to this many over its knot spacing (its
+# passband at 1.5 / h: 1e-6), on this many frequencies (the lightly damped first mode's
+# resonance is ~0.08 Hz wide: 0.004 Hz apart at h = 0.02 s)
+SPLINE_BAND_WIDTHS = 1.5
+SPLINE_BAND_POINTS = 20001
 NO_FRAMES_TOL = 1e-3
 PRIOR_SIM_TOL = 1e-4
 # auto's tolerance must lie in (0, 0.5); tighter than this the FE's time integration
@@ -56,20 +61,27 @@ def drive_tip_uncertainty_m(
     a1_s: float,
     damping_law: str,
 ) -> float:
-    """The RMS tip error the fitted drive's own uncertainty causes (m); NaN when the drive
-    is not a harmonic fit.
+    """The RMS tip error the fitted drive's own uncertainty causes (m); NaN when the fit
+    gives no estimate of it.
 
     Each kept harmonic m of the hub angle carries a coefficient noise of variance V (the
     pot's noise at that frequency over the run: shorter runs, more of it), each dropped
-    one its fitted power; both reach the tip through the linear beam at that frequency,
+    one its fitted power; a spline (a run that does not repeat) passes the pot's noise
+    PSD S through its passband R (:meth:`FittedTraceDrive.spline_uncertainty`,
+    :func:`sim.trace_fit.spline_passband`). Both reach the
+    tip through the linear beam at each frequency,
     ``H(W) = W^2 phi_tip^T (K_e - W^2 M + i W C)^-1 b`` (assumed modes, Euler load
     ``-theta'' b``; the centrifugal stiffening with the run's mean square hub rate,
     ``K_e = K + <theta'^2> (G - M)``; ``C = a0 M + a1 K`` plus ``a1 <theta'^2> G`` for
-    the paper's law). Near the first mode (3.7 Hz) the pot's noise matters most."""
+    the paper's law): ``sum |H(m w)|^2 P_m`` over the harmonics plus
+    ``int |H(2 pi f)|^2 R(f) S df`` for the spline. Near the first mode (3.7 Hz) the
+    pot's noise matters most."""
     found = drive.harmonic_uncertainty()
-    if found is None or not math.isfinite(found[2]):
+    spline = drive.spline_uncertainty()
+    harmonic_ok = found is not None and math.isfinite(found[2])
+    spline_ok = spline is not None and all(math.isfinite(x) for x in spline)
+    if not (harmonic_ok or spline_ok):
         return math.nan
-    omega, kept, var, dropped = found
     mi = modal_integrals(
         beam.length_m,
         beam.hub_offset_m,
@@ -82,13 +94,24 @@ def drive_tip_uncertainty_m(
     c = a0_per_s * mi.mass + a1_s * mi.stiffness
     if damping_law == "paper":
         c = c + a1_s * rate_sq * mi.centrifugal
-    m = np.arange(1, kept + dropped.size + 1)
-    power = np.r_[np.full(kept, var), dropped]
+
+    def gain_sq(w: np.ndarray) -> np.ndarray:
+        """|H(w)|^2 at the angular frequencies ``w`` (rad/s)."""
+        a = k_e[None] - (w * w)[:, None, None] * mi.mass[None] + 1j * w[:, None, None] * c[None]
+        q = np.linalg.solve(a, (w * w)[:, None, None] * mi.euler[None, :, None])[..., 0]
+        return np.abs(q @ mi.tip_shape) ** 2
+
     total = 0.0
-    for mm, p in zip(m, power, strict=True):
-        w = mm * omega
-        q = np.linalg.solve(k_e - w * w * mi.mass + 1j * w * c, w * w * mi.euler)
-        total += abs(complex(mi.tip_shape @ q)) ** 2 * float(p)
+    if found is not None and harmonic_ok:
+        omega, kept, var, dropped = found
+        m = np.arange(1, kept + dropped.size + 1)
+        power = np.r_[np.full(kept, var), dropped]
+        total += float(np.sum(gain_sq(m * omega) * power))
+    if spline is not None and spline_ok:
+        spacing_s, psd = spline
+        f = np.linspace(0.0, SPLINE_BAND_WIDTHS / spacing_s, SPLINE_BAND_POINTS)
+        passed = gain_sq(2.0 * math.pi * f) * spline_passband(f, spacing_s)
+        total += float(np.trapezoid(passed, f)) * psd
     return math.sqrt(total)
 
 

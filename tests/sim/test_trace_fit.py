@@ -21,7 +21,7 @@ from daq.config import DaqConfig
 from sim.drives import Drive, FourBarDrive, SinusoidDrive, TraceDrive
 from sim.errors import SimInputError
 from sim.four_bar import FourBar
-from sim.trace_fit import FittedTraceDrive
+from sim.trace_fit import FittedTraceDrive, spline_passband
 
 FS_ACQ_HZ = 2000.0
 NOISE_RAD = 6e-4  # at 2 kHz, before the filter (the bench's pot: 0.5 mV ~ 5.9e-4 rad)
@@ -162,3 +162,30 @@ def test_fitted_drive_bridges_a_gap_and_refuses_what_it_cannot_fit() -> None:
         FittedTraceDrive(t[:5], y[:5])
     with pytest.raises(SimInputError, match="length of t_s"):
         FittedTraceDrive(t, y[:-1])
+
+
+@pytest.mark.parametrize("spacing_s", [0.02, 0.1, 0.5])
+def test_the_spline_passband_is_what_a_least_squares_spline_keeps(spacing_s: float) -> None:
+    """spline_passband's closed form against least-squares quintic splines actually fitted
+    to sinusoids (dense samples, the middle of the span), and its integral: a band of
+    1 / (2 h)."""
+    from scipy.interpolate import make_lsq_spline
+
+    f_edge = 0.5 / spacing_s
+    assert np.trapezoid(
+        spline_passband(np.linspace(0, 4 * f_edge, 40001), spacing_s), dx=4 * f_edge / 40000
+    ) == pytest.approx(f_edge, rel=1e-4)
+    span = 60 * spacing_s
+    t = np.linspace(0.0, span, 6000)
+    inner = np.arange(1, 60) * spacing_s
+    knots = np.r_[np.zeros(6), inner, np.full(6, span)]
+    mid = (t > 0.3 * span) & (t < 0.7 * span)
+    for v in (0.1, 0.3, 0.45, 0.5, 0.55, 0.7):
+        f = v / spacing_s
+        kept = []
+        for phase in np.linspace(0, np.pi, 8, endpoint=False):
+            y = np.cos(2 * np.pi * f * t + phase)
+            fit = make_lsq_spline(t, y, knots, 5)(t)
+            # the share of power kept: |response|^2 where the fit is a scaled copy
+            kept.append(np.sum(fit[mid] * y[mid]) / np.sum(y[mid] ** 2))
+        assert np.mean(kept) == pytest.approx(spline_passband(f, spacing_s), abs=0.02), v
