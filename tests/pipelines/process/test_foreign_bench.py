@@ -83,14 +83,6 @@ def test_the_foreign_log_is_processed_with_no_rig(
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue #20 gap: the registration detected in this bench's frames biases the "
-    "tip lateral by 0.3-0.5 mm and the longitudinal by up to 0.25 mm (the plate's homography "
-    "extrapolated to the tip; with the true registration the lateral tip is within about "
-    "0.12 mm RMS and the longitudinal within 2 stated sd), and the stated uncertainties "
-    "leave calibration out",
-)
 def test_the_foreign_image_tip_is_within_0_3_mm_of_the_truth(
     foreign: tuple[ForeignRun, xr.Dataset, str],
 ) -> None:
