@@ -14,9 +14,11 @@ linear map, which :func:`frame_sensitivity` writes down from the frame's own geo
 
 - the hub axis passes through the pivot and is fitted jointly with the clamped beam
   (``w(0) = w'(0) = 0``) and the hub's edges: the beam's points move across the axis by
-  ``u . n`` (less the slope times their move along it), the hub's by ``u . n``, and the
-  axis turn ``d theta`` is the least-squares one that a clamped polynomial of the
-  measurer's degree cannot absorb;
+  ``u . n`` (less the slope times their move along it), the hub's by ``u . n`` (each
+  hub edge at its own offset: they give only the direction), and the axis turn
+  ``d theta`` is the least-squares one that the beam's shape (its clamped-free modes or
+  the clamped polynomial, whichever the measurer took: the larger effect is stated)
+  cannot absorb;
 - the tip lateral is the tip's distance from the turned axis:
   ``u(T) . n - d theta (T . e)``;
 - the tip longitudinal is the tip's distance from the clamp along the axis:
@@ -86,10 +88,14 @@ def point_covariance(cal: Calibration, points_m: ArrayLike) -> NDArray[np.float6
     return np.asarray(np.einsum("nik,kl,njl->nij", p, cal.plane_from_ideal_cov, p))
 
 
-def frame_sensitivity(cal: Calibration, m: FrameMeasurement) -> NDArray[np.float64] | None:
+def frame_sensitivity(
+    cal: Calibration, m: FrameMeasurement, shape: str = "modes"
+) -> NDArray[np.float64] | None:
     """(3, 9): the changes of the frame's hub angle (rad), tip lateral and tip
-    longitudinal (m) per change of the homography's elements, or None for a frame
-    without a measurement."""
+    longitudinal (m) per change of the homography's elements, the beam's shape fitted as
+    ``shape`` (one of :data:`SHAPES`), or None for a frame without a measurement."""
+    if shape not in SHAPES:
+        raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
     if not m.ok or m.centreline_plane_m.shape[0] < 3:
         return None
     theta = float(m.hub_angle_rad)
@@ -106,9 +112,9 @@ def frame_sensitivity(cal: Calibration, m: FrameMeasurement) -> NDArray[np.float
     b = np.interp(a, a_line, b_line)
     slope = np.gradient(b, a)
     beam = clamp + a[:, None] * e + b[:, None] * n
-    shape = _shape_basis(a, a_tip, cal.beam_length_m)
-    n_shape = shape.shape[1]
-    rows_beam = np.column_stack([d_clamp + a, np.zeros(len(a)), shape])
+    basis = _shape_basis(a, a_tip, cal.beam_length_m, shape)
+    n_shape = basis.shape[1]
+    rows_beam = np.column_stack([d_clamp + a, np.zeros(len(a)), basis])
     across = n[None, :] - slope[:, None] * e[None, :]  # (K, 2)
     jac_beam = np.einsum("ki,kij->kj", across, plane_jacobian(cal, beam))
     rows, jacs = [rows_beam], [jac_beam]
@@ -130,11 +136,16 @@ def frame_sensitivity(cal: Calibration, m: FrameMeasurement) -> NDArray[np.float
     return np.vstack([g_hub, g_lat, g_lon])
 
 
-SHAPE = "modes"
+#: The shapes the measurer fits the beam with: its clamped-free modes when they pass its
+#: tests, else the clamped polynomial. The frame does not say which.
+SHAPES = ("modes", "polynomial")
 
 
-def _shape_basis(a: NDArray[np.float64], a_tip: float, length_m: float) -> NDArray[np.float64]:
-    if SHAPE == "modes":
+def _shape_basis(
+    a: NDArray[np.float64], a_tip: float, length_m: float, shape: str
+) -> NDArray[np.float64]:
+    """(K, S) the beam's shape space at ``a`` (m from the clamp)."""
+    if shape == "modes":
         return np.asarray(cantilever_modes_t(a / length_m, SHAPE_MODES).T)
     return np.column_stack([(a / a_tip) ** k for k in range(2, POLY_DEGREE + 1)])
 
@@ -155,21 +166,24 @@ def frame_calibration_sd(cal: Calibration, m: FrameMeasurement) -> CalibrationSd
         return CalibrationSd(math.nan, math.nan, math.nan)
     if cal.plane_from_ideal_cov is None:
         return NO_CALIBRATION_SD
-    g = frame_sensitivity(cal, m)
-    if g is None:
-        return CalibrationSd(math.nan, math.nan, math.nan)
-    var = np.einsum("ik,kl,il->i", g, cal.plane_from_ideal_cov, g)
-    sd = np.sqrt(np.maximum(var, 0.0))
+    sd = np.zeros(3)
+    for shape in SHAPES:  # whichever the measurer took: the larger
+        g = frame_sensitivity(cal, m, shape)
+        if g is None:
+            return CalibrationSd(math.nan, math.nan, math.nan)
+        var = np.einsum("ik,kl,il->i", g, cal.plane_from_ideal_cov, g)
+        sd = np.maximum(sd, np.sqrt(np.maximum(var, 0.0)))
     return CalibrationSd(float(sd[0]), float(sd[1]), float(sd[2]))
 
 
 def frame_change(
-    cal: Calibration, other: Calibration, m: FrameMeasurement
+    cal: Calibration, other: Calibration, m: FrameMeasurement, shape: str = "modes"
 ) -> NDArray[np.float64] | None:
     """(3,) the first-order change of the frame's hub angle (rad), tip lateral and
     longitudinal (m) when it is measured with ``other`` instead of ``cal`` (same
-    intrinsics), or None for a frame without a measurement."""
-    g = frame_sensitivity(cal, m)
+    intrinsics), the beam's shape fitted as ``shape``, or None for a frame without a
+    measurement."""
+    g = frame_sensitivity(cal, m, shape)
     if g is None:
         return None
     dh = (other.plane_from_ideal / other.plane_from_ideal[2, 2]).ravel()
