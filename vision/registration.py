@@ -4,7 +4,9 @@ beam plane with two orthogonal dark grooves crossing in a square of known side.
 The grooves cut the plate into four light quadrants; their inner corners are the
 crossing square's corners. Each groove edge is refined to sub-pixel accuracy along its
 whole visible length and fitted as a straight line in undistorted pixels; the corners are
-the intersections of those lines.
+the intersections of those lines. The plate's eight straight edges then fix the plane's
+mapping (:mod:`vision.plane_pose`): the camera's pose when its intrinsics are known, a
+free homography otherwise, with the fit's covariance.
 
 Corner order: the symmetric object does not say which corner is which. The plate is
 taken to be seen from its front (+Z) side, and the registration object's first-groove

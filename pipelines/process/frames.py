@@ -310,7 +310,8 @@ def _abandon(pool: ProcessPoolExecutor) -> None:
 # sqrt(2) times the edges' RMS residual. Checked against the truth with the true
 # registration: within 3 sigma in every frame of the vision bench's nominal, hard,
 # hard-low, blur, short-hub, low-30 and low-60 sets (8 frames each, at most 2.4 sigma).
-# Calibration errors are left out, as in vision's own uncertainties.
+# Calibration errors are left out here, as in vision's own uncertainties; they are one
+# error common to all frames, added by :func:`stated_sds`.
 LONGITUDINAL_SD_PER_EDGE_RMS = math.sqrt(2.0)
 
 
