@@ -10,7 +10,11 @@ Modules, roughly in the order of the data flow:
 - ``homography``: plane-to-plane collineations (the paper's 4-point one, DLT, from lines).
 - ``calibration``: :class:`Calibration`, one camera placement, with the plane <-> pixel
   mapping (``to_px`` / ``to_plane``) and the CAL.json file.
+- ``plane_pose``: the registration plane's mapping fitted to its edges, as a camera pose
+  when the intrinsics are known, with its covariance.
 - ``registration``: finds the registration object in a frame and calibrates from it.
+- ``calibration_error``: what the calibration's own error does to the plane and to each
+  frame's hub angle and tip (one error common to all frames).
 - ``codec``: JPEG/PNG bytes <-> uint8 gray images.
 - ``sampling``, ``edges``: image sampling and sub-pixel edges along scan lines.
 - ``locate``: rough location of beam and hub in the plane.

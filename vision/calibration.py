@@ -12,11 +12,14 @@ projects through :func:`plane_to_px` too, with its true pose's homography.
 
 CAL.json layout::
 
-    {"registration": {"image_points_px": [[x, y], ...], "plane_points_m": [[X, Y], ...]},
+    {"registration": {"image_points_px": [[x, y], ...], "plane_points_m": [[X, Y], ...],
+                      "plane_from_ideal_cov": [[...9...], ... 9 rows]},
      "camera": {"matrix": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "distortion": [k1, ...]},
      "beam": {"length_m": 0.835, "width_m": 0.01905}}
 
-``camera`` and ``beam`` (and each of their keys) are optional.
+``camera`` and ``beam`` (and each of their keys) are optional, as is
+``registration.plane_from_ideal_cov`` (the fitted homography's covariance; absent: the
+points are taken as exact).
 """
 
 from __future__ import annotations
@@ -56,6 +59,11 @@ class Calibration:
     camera_matrix : (3, 3) intrinsics or None (no distortion correction).
     distortion : OpenCV coefficients (k1, k2, p1, p2[, k3...]) or None.
     beam_length_m, beam_width_m : free length (clamp to tip) and width of the beam, m.
+    plane_from_ideal_cov : (9, 9) covariance of the plane-from-undistorted-pixel
+        homography's elements (``plane_from_ideal.ravel()``, normalised to ``[2, 2] = 1``)
+        as fitted to the registration (:mod:`vision.plane_pose`), or None: points taken
+        as exact (a calibration file that states no uncertainty). What it does to each
+        frame: :mod:`vision.calibration_error`.
 
     Map points with :meth:`to_px` (plane to raw pixels) and :meth:`to_plane` (raw pixels
     to plane), lens distortion included when the calibration has it.
@@ -67,6 +75,7 @@ class Calibration:
     distortion: NDArray[np.float64] | None = None
     beam_length_m: float = DEFAULT_BEAM_LENGTH_M
     beam_width_m: float = DEFAULT_BEAM_WIDTH_M
+    plane_from_ideal_cov: NDArray[np.float64] | None = None
     fit: HomographyFit = field(init=False, repr=False)
     _ideal_from_plane: NDArray[np.float64] = field(init=False, repr=False)
     _lens: Lens = field(init=False, repr=False)
@@ -96,6 +105,18 @@ class Calibration:
         object.__setattr__(self, "plane_points_m", pln)
         object.__setattr__(self, "camera_matrix", k)
         object.__setattr__(self, "distortion", d)
+        if self.plane_from_ideal_cov is not None:
+            cov = np.asarray(self.plane_from_ideal_cov, dtype=np.float64)
+            if (
+                cov.shape != (9, 9)
+                or not np.all(np.isfinite(cov))
+                or not np.allclose(cov, cov.T, rtol=1e-6, atol=0.0)
+                or np.any(np.diag(cov) < 0)
+            ):
+                raise ParameterError(
+                    "plane_from_ideal_cov", "must be a finite symmetric 9x9 covariance"
+                )
+            object.__setattr__(self, "plane_from_ideal_cov", cov)
         ideal = undistort_points_px(img, k, d)
         try:
             fit = collineation_4pt(ideal, pln) if len(img) == 4 else dlt_homography(ideal, pln)
@@ -147,6 +168,8 @@ class Calibration:
             },
             "beam": {"length_m": self.beam_length_m, "width_m": self.beam_width_m},
         }
+        if self.plane_from_ideal_cov is not None:
+            out["registration"]["plane_from_ideal_cov"] = self.plane_from_ideal_cov.tolist()
         cam: dict[str, Any] = {}
         if self.camera_matrix is not None:
             cam["matrix"] = self.camera_matrix.tolist()
@@ -192,6 +215,14 @@ def calibration_from_dict(data: Any) -> Calibration:
     for key in ("image_points_px", "plane_points_m"):
         if key not in reg:
             raise CalibrationError(f"registration.{key} is missing")
+    cov = None
+    if reg.get("plane_from_ideal_cov") is not None:
+        try:
+            cov = np.asarray(reg["plane_from_ideal_cov"], dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise CalibrationError(
+                f"registration.plane_from_ideal_cov is not numeric ({exc})"
+            ) from None
     cam = data.get("camera", {}) or {}
     beam = data.get("beam", {}) or {}
     if not isinstance(cam, dict) or not isinstance(beam, dict):
@@ -218,6 +249,7 @@ def calibration_from_dict(data: Any) -> Calibration:
         distortion=dist,
         beam_length_m=_number(beam.get("length_m", DEFAULT_BEAM_LENGTH_M), "beam.length_m"),
         beam_width_m=_number(beam.get("width_m", DEFAULT_BEAM_WIDTH_M), "beam.width_m"),
+        plane_from_ideal_cov=cov,
     )
 
 

@@ -29,7 +29,8 @@ class FrameMeasurement:
     hub_width_m, beam_width_m : widths measured in the frame.
     edge_rms_m : RMS residual of the beam edge fits.
     hub_angle_std_rad, tip_lateral_std_m : standard uncertainties predicted from the edge
-        fits' residuals (noise only; calibration errors are not included).
+        fits' residuals (noise only; the calibration's error, common to all frames, is
+        :mod:`vision.calibration_error`'s).
     blur_px : median ramp width of the beam's edges along the scan lines, px (motion blur
         widens it; frames beyond ``max_blur_px`` are flagged).
 

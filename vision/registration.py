@@ -4,7 +4,9 @@ beam plane with two orthogonal dark grooves crossing in a square of known side.
 The grooves cut the plate into four light quadrants; their inner corners are the
 crossing square's corners. Each groove edge is refined to sub-pixel accuracy along its
 whole visible length and fitted as a straight line in undistorted pixels; the corners are
-the intersections of those lines.
+the intersections of those lines. The plate's eight straight edges then fix the plane's
+mapping (:mod:`vision.plane_pose`): the camera's pose when its intrinsics are known, a
+free homography otherwise, with the fit's covariance.
 
 Corner order: the symmetric object does not say which corner is which. The plate is
 taken to be seen from its front (+Z) side, and the registration object's first-groove
@@ -15,7 +17,9 @@ default 0 means the plane's +X axis points roughly to the image's right.
 
 from __future__ import annotations
 
+import logging
 import math
+from dataclasses import dataclass
 from itertools import combinations
 
 import cv2
@@ -33,7 +37,10 @@ from vision.homography import (
     collineation_4pt,
     homography_from_lines,
 )
+from vision.plane_pose import PlaneFit, fit_lines
 from vision.sampling import bilinear
+
+log = logging.getLogger(__name__)
 
 
 def registration_plane_points_m(registration: RegistrationConfig) -> NDArray[np.float64]:
@@ -240,17 +247,30 @@ def _local_to_plane(registration: RegistrationConfig, local: NDArray[np.float64]
     return local @ np.array([[c, s], [-s, c]]) + np.asarray(registration.center_m)
 
 
-def detect_registration_points(
+@dataclass(frozen=True)
+class Registration:
+    """The registration object found in a frame: the 16 corners of its four light
+    quadrants in raw pixels (16, 2) and in the beam plane (16, 2), m, and the plane's
+    fitted mapping with its covariance (:class:`~vision.plane_pose.PlaneFit`)."""
+
+    image_points_px: NDArray[np.float64]
+    plane_points_m: NDArray[np.float64]
+    fit: PlaneFit
+
+
+def detect_registration(
     image_gray: NDArray[np.uint8],
     registration: RegistrationConfig,
     camera_matrix: NDArray[np.float64] | None = None,
     distortion: NDArray[np.float64] | None = None,
     x_axis_image_rad: float = 0.0,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """All 16 corners of the plate's four light quadrants: raw pixels (16, 2) and beam-plane
-    metres (16, 2). The eight straight edges (two per groove, four plate borders) are each
-    refined along their whole length and intersected, which pins the homography over the
-    whole plate rather than only the crossing square. Raises
+) -> Registration:
+    """Find the registration object and fit the plane to its eight straight edges (two
+    per groove, four plate borders), each refined along its whole length, which pins the
+    mapping over the whole plate rather than only at the crossing square. With the
+    camera's intrinsics the plane's pose is fitted (6 degrees of freedom), else a free
+    homography (8); a pose the edges reject (wrong intrinsics) falls back to the free
+    fit with a warning (:func:`vision.plane_pose.fit_lines`). Raises
     :class:`~vision.errors.RegistrationError` (a ``ValueError``) with the reason."""
     k, d = check_intrinsics(camera_matrix, distortion)
     inner = _detect_inner(image_gray, registration, k, d, x_axis_image_rad)
@@ -286,8 +306,21 @@ def detect_registration_points(
     h0_inv = np.asarray(np.linalg.inv(h0), dtype=np.float64)
     fit = homography_from_lines(lines_px, np.array(plane_lines), h0_inv)
     _check_fit(fit, k)
+    keep = np.concatenate(fit.inliers)
+    index = np.concatenate([np.full(len(p), j) for j, p in enumerate(lines_px)])
+    plane = fit_lines(
+        np.vstack(lines_px)[keep],
+        index[keep],
+        np.array(plane_lines),
+        fit.matrix,
+        k,
+        _plane_from_local(registration),
+    )
+    if plane.note:
+        log.warning("registration object: %s", plane.note)
     local16 = np.array([(u, v) for u in levels for v in levels])
-    ideal16 = apply_homography(np.linalg.inv(fit.matrix), local16)
+    plane16 = _local_to_plane(registration, local16)
+    ideal16 = apply_homography(np.linalg.inv(plane.matrix), plane16)
     raw = distort_points_px(ideal16, k, d)
     # The refined inner corners must agree with the quadrants' own corners.
     moved = float(np.max(np.linalg.norm(raw[[5, 9, 10, 6]] - inner, axis=1)))
@@ -300,7 +333,30 @@ def detect_registration_points(
     h, w = image_gray.shape
     if np.any(raw < 0) or np.any(raw[:, 0] > w - 1) or np.any(raw[:, 1] > h - 1):
         raise RegistrationError("a plate corner lies off the image", found=True)
-    return raw, _local_to_plane(registration, np.array(local16))
+    return Registration(raw, plane16, plane)
+
+
+def detect_registration_points(
+    image_gray: NDArray[np.uint8],
+    registration: RegistrationConfig,
+    camera_matrix: NDArray[np.float64] | None = None,
+    distortion: NDArray[np.float64] | None = None,
+    x_axis_image_rad: float = 0.0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """All 16 corners of the plate's four light quadrants: raw pixels (16, 2) and beam-plane
+    metres (16, 2), from :func:`detect_registration`. Raises
+    :class:`~vision.errors.RegistrationError` (a ``ValueError``) with the reason."""
+    found = detect_registration(
+        image_gray, registration, camera_matrix, distortion, x_axis_image_rad
+    )
+    return found.image_points_px, found.plane_points_m
+
+
+def _plane_from_local(registration: RegistrationConfig) -> NDArray[np.float64]:
+    """(3, 3) the similarity from the object's own frame to the beam plane's."""
+    c, s = math.cos(registration.angle_rad), math.sin(registration.angle_rad)
+    cx, cy = registration.center_m
+    return np.array([[c, -s, cx], [s, c, cy], [0.0, 0.0, 1.0]])
 
 
 #: Refuse the registration when a straight edge keeps less than this share of its points.
@@ -428,19 +484,21 @@ def calibration_from_registration(
     x_axis_image_rad: float = 0.0,
 ) -> Calibration:
     """Detect the registration object in a frame and build the :class:`Calibration`
-    from the 16 plate-quadrant corners (normalized DLT). Raises
+    from the 16 plate-quadrant corners of the fitted plane (:func:`detect_registration`),
+    with the fit's covariance. Raises
     :class:`~vision.errors.RegistrationError` (a ``ValueError``) with the reason when the
     object cannot be found."""
     if not isinstance(image_gray, np.ndarray) or image_gray.dtype != np.uint8:
         raise TypeError("image_gray must be a uint8 numpy array")
-    image_pts, plane_pts = detect_registration_points(
+    found = detect_registration(
         image_gray, registration, camera_matrix, distortion, x_axis_image_rad
     )
     return Calibration(
-        image_pts,
-        plane_pts,
+        found.image_points_px,
+        found.plane_points_m,
         camera_matrix,
         distortion,
         beam_length_m=beam_length_m,
         beam_width_m=beam_width_m,
+        plane_from_ideal_cov=found.fit.covariance,
     )

@@ -90,6 +90,22 @@ def _with_sds(m: dict[str, Any], longitudinal_sd_m: float) -> dict[str, Any]:
     return out
 
 
+def _calibration_included(
+    m: dict[str, Any], total: tuple[float, ...], calibration: tuple[float, ...]
+) -> tuple[dict[str, Any], float]:
+    """``m`` with each standard uncertainty the total (the frame's noise and the
+    calibration's error in quadrature) and the calibration's share added as
+    ``calibration_*`` keys (zero when the calibration file states no covariance), and
+    the longitudinal total for :func:`_with_sds`."""
+    if not m["ok"]:
+        return m, math.nan
+    out = {**m, "hub_angle_sd_rad": total[0], "tip_lateral_sd_m": total[1]}
+    names = ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m")
+    for name, value in zip(names, calibration, strict=True):
+        out[f"calibration_{name}"] = value
+    return out, total[2]
+
+
 def run(args: argparse.Namespace) -> int:
     from pipelines.process.frames import measurer_for
     from vision import load_calibration
@@ -107,11 +123,11 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise BeambenchError(f"{args.calibration}: {exc} ({path})") from None
     measurer = measurer_for(cal, None, args.method, limit_m)
-    from pipelines.process.frames import tip_longitudinal_sd_m
+    from pipelines.process.frames import stated_sds
 
     for path, image in images:
         measured = measurer.measure(image)
-        m = _with_sds(measured.to_dict(), tip_longitudinal_sd_m(measured))
+        m = _with_sds(*_calibration_included(measured.to_dict(), *stated_sds(measured, cal)))
         if args.json:
             print(json.dumps({"image": path, **m}))
         else:

@@ -29,6 +29,7 @@ import numpy as np
 
 from pipelines.errors import BeambenchError
 from vision import Calibration, FrameMeasurement, Measurer, decode
+from vision.calibration_error import frame_calibration_sd
 
 log = logging.getLogger(__name__)
 
@@ -309,7 +310,8 @@ def _abandon(pool: ProcessPoolExecutor) -> None:
 # sqrt(2) times the edges' RMS residual. Checked against the truth with the true
 # registration: within 3 sigma in every frame of the vision bench's nominal, hard,
 # hard-low, blur, short-hub, low-30 and low-60 sets (8 frames each, at most 2.4 sigma).
-# Calibration errors are left out, as in vision's own uncertainties.
+# Calibration errors are left out here, as in vision's own uncertainties; they are one
+# error common to all frames, added by :func:`stated_sds`.
 LONGITUDINAL_SD_PER_EDGE_RMS = math.sqrt(2.0)
 
 
@@ -321,19 +323,42 @@ def tip_longitudinal_sd_m(m: FrameMeasurement) -> float:
     return LONGITUDINAL_SD_PER_EDGE_RMS * float(m.edge_rms_m)
 
 
-def as_arrays(frames: list[MeasuredFrame]) -> dict[str, np.ndarray]:
-    """Columns of the measured frames (NaN where a frame gave no measurement)."""
+def stated_sds(
+    m: FrameMeasurement, calibration: Calibration | None
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """A frame's standard uncertainties (hub angle rad, tip lateral m, tip longitudinal
+    m): the total, and the calibration's share of it. The calibration's error is one
+    error common to all frames of a run (:mod:`vision.calibration_error`), independent
+    of each frame's noise: the two add in quadrature. Without a calibration (or one that
+    states no covariance) its share is zero."""
+    noise = (m.hub_angle_std_rad, m.tip_lateral_std_m, tip_longitudinal_sd_m(m))
+    if not m.ok:
+        return (math.nan,) * 3, (math.nan,) * 3
+    if calibration is None:
+        return noise, (0.0, 0.0, 0.0)
+    c = frame_calibration_sd(calibration, m)
+    cal = (c.hub_angle_rad, c.tip_lateral_m, c.tip_longitudinal_m)
+    total = tuple(math.hypot(a, b) for a, b in zip(noise, cal, strict=True))
+    return (total[0], total[1], total[2]), cal
+
+
+def as_arrays(
+    frames: list[MeasuredFrame], calibration: Calibration | None = None
+) -> dict[str, np.ndarray]:
+    """Columns of the measured frames (NaN where a frame gave no measurement). The
+    standard uncertainties include the ``calibration``'s error when it is given
+    (:func:`stated_sds`); its share alone is in the ``calibration_*`` columns."""
     n = len(frames)
     s = max((f.measurement.stations_m.size for f in frames), default=0)
+    sd_keys = ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m")
     cols: dict[str, np.ndarray] = {
         "t_ns": np.array([f.t_ns for f in frames], dtype=np.int64),
         "ok": np.array([f.measurement.ok for f in frames], dtype=bool),
         "hub_angle_rad": np.full(n, np.nan),
         "tip_lateral_m": np.full(n, np.nan),
         "tip_longitudinal_m": np.full(n, np.nan),
-        "hub_angle_sd_rad": np.full(n, np.nan),
-        "tip_lateral_sd_m": np.full(n, np.nan),
-        "tip_longitudinal_sd_m": np.full(n, np.nan),
+        **{k: np.full(n, np.nan) for k in sd_keys},
+        **{f"calibration_{k}": np.full(n, np.nan) for k in sd_keys},
         "lateral_at_stations_m": np.full((n, s), np.nan),
     }
     for i, f in enumerate(frames):
@@ -342,9 +367,10 @@ def as_arrays(frames: list[MeasuredFrame]) -> dict[str, np.ndarray]:
             cols["hub_angle_rad"][i] = m.hub_angle_rad
             cols["tip_lateral_m"][i] = m.tip_lateral_m
             cols["tip_longitudinal_m"][i] = m.tip_longitudinal_m
-            cols["hub_angle_sd_rad"][i] = m.hub_angle_std_rad
-            cols["tip_lateral_sd_m"][i] = m.tip_lateral_std_m
-            cols["tip_longitudinal_sd_m"][i] = tip_longitudinal_sd_m(m)
+            total, cal = stated_sds(m, calibration)
+            for k, t, c in zip(sd_keys, total, cal, strict=True):
+                cols[k][i] = t
+                cols[f"calibration_{k}"][i] = c
             cols["lateral_at_stations_m"][i, : m.lateral_at_stations_m.size] = (
                 m.lateral_at_stations_m
             )

@@ -47,6 +47,7 @@ from sim.result import SimResult
 from sim.trace_fit import FittedTraceDrive
 from vision import Calibration, calibration_from_registration, decode, load_calibration
 from vision.calibration import check_points_in_image
+from vision.calibration_error import point_covariance
 
 log = logging.getLogger(__name__)
 
@@ -153,6 +154,23 @@ def calibrate(run: Any, rig: Rig, calibration_path: Path | None) -> Calibration:
         f"{run.path}: no calibration given and the registration object was not found "
         f"in the first frames ({why}); pass --calibration CAL.json"
     )
+
+
+def calibration_attrs(calibration: Calibration, cols: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The calibration's own error, one error common to every frame (already in each
+    frame's stated sd): its standard uncertainty at the pivot (the plane's origin, along
+    the plane's X and Y, m), and what it gives the frames' hub angle, tip lateral and longitudinal,
+    RMS over the measured frames (0 for a calibration that states no covariance)."""
+    pivot = point_covariance(calibration, np.zeros((1, 2)))[0]
+    out: dict[str, Any] = {
+        "calibration_pivot_x_sd_m": float(math.sqrt(pivot[0, 0])),
+        "calibration_pivot_y_sd_m": float(math.sqrt(pivot[1, 1])),
+        "calibration_states_covariance": int(calibration.plane_from_ideal_cov is not None),
+    }
+    for key in ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m"):
+        v = cols[f"calibration_{key}"][cols["ok"]]
+        out[f"calibration_{key}"] = float(np.sqrt(np.mean(v**2))) if v.size else math.nan
+    return out
 
 
 def strain_shape_for(rig: Rig, stations_m: np.ndarray | None = None) -> StrainShape:
@@ -352,7 +370,7 @@ def process_run(
                 progress=bar.update,
                 max_tip_uncertainty_m=max_tip_uncertainty_m,
             )
-        cols = as_arrays(frames)
+        cols = as_arrays(frames, calibration)
         failures = _report_failures(log_path, frames)
         hub = measured_hub([f.measurement for f in frames], calibration)
         if (note := offset_warning(hub, rig)) is not None:
@@ -409,6 +427,7 @@ def process_run(
         "camera_clock_drift_ppm": alignment.drift_ppm if alignment.ok else math.nan,
         "alignment": json.dumps(alignment.__dict__),
         "calibration": calibration.to_json(),
+        **calibration_attrs(calibration, cols),
         "settle_time_s": SETTLE_S,
         "strain_shape_basis": shape.basis,
         "frames_failed": int(np.count_nonzero(~cols["ok"])),

@@ -348,11 +348,14 @@ def _model_error_lines(a: Mapping[str, object], errors: Mapping[str, Any]) -> li
         f"{format_value(drive, 1e3)} |",
         f"| image's stated uncertainty, RMS over the frames | {format_value(sd, 1e3)} |",
         f"| expected image - sim RMS from these three alone | {format_value(expected, 1e3)} |",
+        f"| the calibration's stated uncertainty at the tip, RMS over the frames | "
+        f"{format_value(v('calibration_tip_lateral_sd_m'), 1e3)} |",
         "",
-        "The image's stated uncertainty is its edge fits' noise (calibration errors are not "
-        "in it). The model's estimate is its numerical error; the drive's is the "
-        "potentiometer's noise left in the fitted hub angle (`sim_drive`), carried through "
-        "the linear beam.",
+        "The image's stated uncertainty here is its edge fits' noise; the calibration's, "
+        "one error common to every frame, is stated apart (the frames' `tip_lateral_sd` "
+        "holds both in quadrature). The model's estimate is its numerical error; the "
+        "drive's is the potentiometer's noise left in the fitted hub angle (`sim_drive`), "
+        "carried through the linear beam.",
         "",
     ]
 

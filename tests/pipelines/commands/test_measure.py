@@ -84,6 +84,9 @@ def test_json_carries_each_standard_uncertainty_beside_its_value(files, capsys) 
         assert good[sd] > 0.0 and black[sd] is None
     # plausible for a 2 DN frame: micro- to a tenth of a millimetre, not zero or metres
     assert 1e-6 < good["tip_longitudinal_sd_m"] < 1e-4
+    # a calibration file that states no covariance adds nothing for the calibration
+    for name in ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m"):
+        assert good[f"calibration_{name}"] == 0.0 and f"calibration_{name}" not in black
 
 
 def test_text_output(files, capsys) -> None:
@@ -178,3 +181,27 @@ def test_calibration_beam_values_must_be_numbers(
     cal.write_text(json.dumps(data))
     err = _one_error_line(["measure", str(files["frame.jpg"]), "--calibration", str(cal)], capsys)
     assert "beam.length_m must be a number" in err
+
+
+def test_a_calibration_with_its_covariance_adds_it_in_quadrature(files, tmp_path, capsys) -> None:
+    from vision import decode, load_calibration
+    from vision.registration import calibration_from_registration
+
+    known = load_calibration(files["cal.json"])
+    image = decode(files["frame.jpg"].read_bytes())
+    detected = calibration_from_registration(
+        image, RegistrationConfig(), known.camera_matrix, known.distortion
+    )
+    assert detected.plane_from_ideal_cov is not None
+    (tmp_path / "detected.json").write_text(detected.to_json())
+    out = {}
+    for name, path in (("known", files["cal.json"]), ("detected", tmp_path / "detected.json")):
+        argv = ["measure", str(files["frame.jpg"]), "--calibration", str(path), "--json"]
+        assert main(argv) == 0
+        out[name] = json.loads(capsys.readouterr().out)
+    for sd in ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m"):
+        share = out["detected"][f"calibration_{sd}"]
+        assert share > 0.0
+        # the frame's own noise (as measured with the known calibration) and the
+        # calibration's share, in quadrature
+        assert out["detected"][sd] == pytest.approx(math.hypot(out["known"][sd], share), rel=0.05)
