@@ -49,6 +49,10 @@ def test_processed_run_matches_the_synthetic_truth(
     n_frames = ds.sizes["frame_time"]
     assert n_frames == pytest.approx(DURATION_S * 15, abs=2)
     assert ds["frame_ok"].values.mean() > 0.95
+    # the hub the frames show is the one the rig describes and the camera drew
+    assert ds.attrs["hub_length_measured_m"] == pytest.approx(0.2, abs=0.5e-3)
+    assert ds.attrs["hub_width_measured_m"] == pytest.approx(0.04, abs=0.5e-3)
+    assert ds.attrs["hub_offset_measured_m"] == pytest.approx(0.008, abs=0.2e-3)
     # camera clock offset found: frame times land on the true exposure mid-points
     bench = devices.bench  # type: ignore[attr-defined]
     cam = devices.camera  # type: ignore[attr-defined]
