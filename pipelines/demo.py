@@ -93,7 +93,13 @@ def truth_notes(processed: Processed, devices: SyntheticDevices) -> list[str]:
     notes.append(
         "Synthetic truth: camera clock offset "
         f"{CAMERA_CLOCK_OFFSET_S * 1e3:.1f} ms with "
-        f"{bench.rig.synthetic.clock_drift_ppm:g} ppm drift; frame times after alignment "
+        f"{bench.rig.synthetic.clock_drift_ppm:g} ppm drift"
+        + (
+            f", frames stamped {latency * 1e3:.1f} ms after mid-exposure"
+            if (latency := bench.rig.synthetic.stamp_latency_s)
+            else ""
+        )
+        + "; frame times after alignment "
         f"are within {np.max(np.abs(dt_err)) * 1e3:.3f} ms of the true exposure mid-points "
         f"(RMS {np.sqrt(np.mean(dt_err**2)) * 1e3:.3f} ms)."
     )

@@ -51,7 +51,12 @@ SYNTHETIC_LIMITS = {
     "clock_jitter_s": (1e-2, "s", "a sixth of a frame period at 15 frames/s"),
     "image_noise_dn": (64.0, "DN RMS", "a quarter of the 8-bit range"),
     "warmup_s": (600.0, "s", "simulated before the capture starts"),
+    "stamp_latency_s": (0.25, "s", "processing searches the camera-to-DAQ offset within 0.5 s"),
 }
+# The synthetic camera's brightness levels (DN before lighting) are 8-bit values, the
+# lighting's fractional gain must stay positive across the image (see SyntheticConfig).
+MAX_DN = 255.0
+MAX_LIGHTING_GRADIENT = 1.0  # gain 1 +/- 0.5 at the image's sides
 MAX_RELEASE_AT_S = 4 * 3600.0
 
 
@@ -71,6 +76,16 @@ class SyntheticConfig:
     release_tip_m: float = 0.03
     release_at_s: float = 1.0
     strain_offset: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
+    # The synthetic camera's picture (vision.synthetic.scene.SceneSpec): the background's
+    # and the beam's brightness in DN before lighting (the contrast is their difference;
+    # the hub is drawn at the same fraction of it as on the default bench, 190 DN there),
+    # and the lighting's fractional change across the image width, left to right.
+    background_dn: float = 40.0
+    beam_dn: float = 215.0
+    lighting_gradient: float = 0.0
+    # The synthetic camera stamps each frame this long after its mid-exposure (a camera
+    # that stamps on arrival); processing must find it in the camera-to-DAQ offset.
+    stamp_latency_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -79,6 +94,7 @@ class SyntheticConfig:
             "clock_jitter_s",
             "image_noise_dn",
             "warmup_s",
+            "stamp_latency_s",
         ):
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0.0:
@@ -105,11 +121,31 @@ class SyntheticConfig:
                 "strain_offset must be four finite strains within +/-0.01 (m/m), got "
                 f"{list(self.strain_offset)!r}"
             )
+        for name in ("background_dn", "beam_dn"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= MAX_DN:
+                raise ValueError(f"{name} must be within 0..{MAX_DN:g} DN (8 bits), got {v!r}")
+        if not self.beam_dn > self.background_dn:
+            raise ValueError(
+                f"beam_dn ({self.beam_dn!r}) must exceed background_dn ({self.background_dn!r}): "
+                "the synthetic bench's beam is lit against a dark background"
+            )
+        if not abs(self.lighting_gradient) <= MAX_LIGHTING_GRADIENT:
+            raise ValueError(
+                f"lighting_gradient must be within +/-{MAX_LIGHTING_GRADIENT:g} (the light's "
+                f"fractional change across the image), got {self.lighting_gradient!r}"
+            )
         if not 0.0 <= self.release_at_s <= MAX_RELEASE_AT_S:
             raise ValueError(
                 f"release_at_s must be a finite number of seconds within 0..{MAX_RELEASE_AT_S:g} "
                 f"(a capture's length), got {self.release_at_s!r}"
             )
+
+    @property
+    def hub_dn(self) -> float:
+        """The hub's brightness: as far from the background's toward the beam's as on the
+        default bench (190 DN between 40 and 215)."""
+        return self.background_dn + (self.beam_dn - self.background_dn) * 150.0 / 175.0
 
 
 # Limits of a hub's size (hints; each with its reason).
@@ -122,7 +158,8 @@ class HubConfig:
     """The hub: the block the beam is clamped in (the paper's is about 68 mm long and
     51 mm wide). Hints for the image measurement only: it finds the hub in each frame
     (its edges when long, always the beam's root) and the processing compares what it
-    found with these. The pivot-to-clamp offset is ``[beam] hub_offset_m``."""
+    found with these. The built-in synthetic bench draws this hub. The pivot-to-clamp
+    offset is ``[beam] hub_offset_m``."""
 
     length_m: float = 0.068
     width_m: float = 0.051

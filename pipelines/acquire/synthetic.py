@@ -9,6 +9,13 @@ capture sees the steady state.
 ``rig.synthetic.scene = "free_decay"`` holds the hub still instead and releases the tip
 from a static deflection (the paper's damping runs, §5.2.1).
 
+The camera draws the bench the rig describes: the hub of ``[hub]`` (length, width) with
+its clamp ``[beam] hub_offset_m`` from the pivot, the beam of ``[beam]``, the brightness,
+contrast and lighting of ``[synthetic]`` (``background_dn``, ``beam_dn``,
+``lighting_gradient``), motion-blurred over ``[camera] exposure_s``: a frame is the
+average of the beam's simulated poses over its exposure, at most a pixel of tip travel
+apart. Frames are stamped ``[synthetic] stamp_latency_s`` after mid-exposure.
+
 The fakes only see callables (daq has no physics): ``strain_fn(t_s)``,
 ``angle_fn(t_s)`` and ``render_fn(t_start_s, exposure_s)``.
 """
@@ -127,8 +134,14 @@ class SyntheticBench:
             beam_length_m=rig.beam.length_m,
             beam_width_m=rig.beam.width_m,
             hub_offset_m=rig.beam.hub_offset_m,
+            hub_length_m=rig.hub.length_m,
+            hub_width_m=rig.hub.width_m,
             noise_dn=rig.synthetic.image_noise_dn,
             seed=self.seed,
+            background_dn=rig.synthetic.background_dn,
+            beam_dn=rig.synthetic.beam_dn,
+            hub_dn=rig.synthetic.hub_dn,
+            lighting_gradient=rig.synthetic.lighting_gradient,
         )
         # Tip travel per second at the fastest, in pixels, sets the motion-blur sampling.
         hub_rate = np.abs(np.gradient(result.hub_angle_rad, result.time_s))
@@ -162,7 +175,10 @@ class SyntheticBench:
         n = self.blur_samples
         times = t_start_s + exposure_s * (np.arange(n) + 0.5) / n
         # Seeded per frame, not from a shared generator: frames render in worker threads.
-        rng = np.random.default_rng([self.seed + 1, round(t_start_s * 1e6)])
+        # (A frame stamped late may have been exposed before the run's clock started.)
+        t_us = round(t_start_s * 1e6)
+        key = [self.seed + 1, t_us] if t_us >= 0 else [self.seed + 1, 0, -t_us]
+        rng = np.random.default_rng(key)
         frame = render_frame(self.scene, [self.pose(float(t)) for t in times], rng=rng)
         cam = self.rig.camera
         return encode(frame.image, cam.encoding, cam.jpeg_quality)
@@ -292,7 +308,10 @@ def build_synthetic(
         exposure_s=cam.exposure_s,
         latency_s=cam.latency_s,
         clock_drift_ppm=syn.clock_drift_ppm,
-        clock_offset_s=CAMERA_CLOCK_OFFSET_S,
+        # A camera that stamps its frames L after mid-exposure is, to everything that
+        # reads the log, a camera whose clock runs L ahead: the stamps against the true
+        # exposure times are the same (daq's fake stamps at mid-exposure).
+        clock_offset_s=CAMERA_CLOCK_OFFSET_S + syn.stamp_latency_s,
         clock_jitter_s=syn.clock_jitter_s,
         seed=bench.seed + 2,
         realtime=realtime,

@@ -1,8 +1,11 @@
 """The campaign catalogue ``OUT/campaign.nc``: one xarray Dataset with a ``run``
 dimension, one row per run (design.md, "A campaign writes ... a catalogue").
 
-A row is a flat dict; :data:`COLUMNS` says each column's units and meaning. A failed run
-has its ``error`` text and NaN numbers. The file is rewritten (atomically) after every
+A row is a flat dict; :data:`COLUMNS` says each column's units and meaning. A run's
+``status`` is one of :data:`STATUSES`: ``ok``; ``flagged``, processed and its results file
+written, but a result is missing or may be wrong (no frame measured): its ``error`` says
+why and the numbers that could be made are kept; ``failed``, its ``error`` text and NaN
+numbers. The file is rewritten (atomically) after every
 finished run, so a campaign that is killed keeps what it finished.
 """
 
@@ -24,10 +27,13 @@ CATALOGUE_NAME = "campaign.nc"
 FORMAT_NAME = "beambench-campaign"
 FORMAT_VERSION = 1
 
+STATUSES = ("ok", "flagged", "failed")
+
 # name: (units, long_name); "" units for text
 TEXT_COLUMNS: dict[str, str] = {
-    "status": "ok, or failed (see error)",
-    "error": "why the run failed (empty when ok)",
+    "status": "ok; flagged: processed, but a result is missing or may be wrong (see error); "
+    "or failed (see error)",
+    "error": "why the run failed or was flagged (empty when ok)",
     "warnings": "warnings the run logged, one a line",
     "run_id": "run id recorded in the log",
     "source_log": "the run's log file",

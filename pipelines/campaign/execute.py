@@ -41,6 +41,8 @@ class CampaignOutcome:
     processed: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
+    #: processed (and in ``processed``) but flagged: a result is missing or may be wrong
+    flagged: list[str] = field(default_factory=list)
     rows: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
@@ -68,8 +70,8 @@ def is_done(spec: RunSpec, row: dict[str, Any] | None) -> bool:
 
 def describe(row: dict[str, Any]) -> str:
     """One line for a finished run."""
-    if row["status"] != "ok":
-        first = str(row["error"]).splitlines()[0] if row["error"] else "unknown error"
+    first = str(row["error"]).splitlines()[0] if row["error"] else "unknown error"
+    if row["status"] == "failed":
         return f"{row['run']}: FAILED: {first}"
     mm = 1e3
     f = row["crank_frequency_hz"]
@@ -77,10 +79,10 @@ def describe(row: dict[str, Any]) -> str:
     for src in ("image", "strain", "sim"):
         a = row[f"tip_lateral_{src}_amplitude_m"]
         parts.append(f"tip {src} {a * mm:.2f} mm")
-    return (
-        f"{row['run']}: ok, " + ", ".join(parts) + f" ({row['process_wall_time_s']:.1f} s on "
-        f"{row['worker']})"
-    )
+    where = f" ({row['process_wall_time_s']:.1f} s on {row['worker']})"
+    if row["status"] == "flagged":
+        return f"{row['run']}: FLAGGED: {first}; " + ", ".join(parts) + where
+    return f"{row['run']}: ok, " + ", ".join(parts) + where
 
 
 def run_campaign(
@@ -149,7 +151,9 @@ def _gather(
             row = result if exc is None else failed_row(spec, f"{type(exc).__name__}: {exc}")
             future.release()
             outcome.rows[spec.name] = row
-            (outcome.processed if row["status"] == "ok" else outcome.failed).append(spec.name)
+            (outcome.failed if row["status"] == "failed" else outcome.processed).append(spec.name)
+            if row["status"] == "flagged":
+                outcome.flagged.append(spec.name)
             save()
             report(f"[{k}/{len(todo)}] {describe(row)}")
     except SchedulerLost as exc:

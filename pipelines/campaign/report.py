@@ -134,12 +134,15 @@ def write_campaign_report(
     """Write ``out_dir/campaign.md`` and its figure; return the markdown's path."""
     fig_path = out_dir / FIGURE_NAME
     _plot(catalogue, sweep, fig_path)
+    statuses = catalogue["status"].values
     lines = [
         f"# {title or 'beambench campaign'}",
         "",
         f"{catalogue.sizes['run']} runs, "
-        f"{int(np.sum(catalogue['status'].values == 'ok'))} processed, "
-        f"{int(np.sum(catalogue['status'].values != 'ok'))} failed. Amplitude (mm) and phase "
+        f"{int(np.sum(statuses == 'ok'))} processed ok, "
+        f"{int(np.sum(statuses == 'flagged'))} flagged (processed, but a result is missing or "
+        f"may be wrong: see its status), {int(np.sum(statuses == 'failed'))} failed. "
+        "Only the runs processed ok are plotted. Amplitude (mm) and phase "
         "lag behind the rocker angle (deg) of the tip's crank fundamental, ± one standard "
         "uncertainty, over the steady part of each run. The uncertainties are the fits' "
         "statistical ones (noise left in the residuals); systematic errors are not in them "

@@ -32,6 +32,11 @@ SETTLE_S = 3.0
 PERIODS = 4
 
 
+def point_duration_s(crank_hz: float, settle_s: float = SETTLE_S, periods: int = PERIODS) -> float:
+    """Simulated time of one point: the settling and the fitted crank periods."""
+    return settle_s + periods / crank_hz
+
+
 @dataclass(frozen=True)
 class SweepPoint:
     crank_hz: float
@@ -91,7 +96,7 @@ def _simulate(rig: Rig, point: SweepPoint) -> dict[str, Any]:
     from sim import scenes
 
     linkage = dataclasses.replace(rig.linkage, crank_frequency_hz=point.crank_hz)
-    duration_s = point.settle_s + point.periods / point.crank_hz
+    duration_s = point_duration_s(point.crank_hz, point.settle_s, point.periods)
     run = scenes.reciprocating(
         linkage,
         rig.beam,

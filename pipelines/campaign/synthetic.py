@@ -78,6 +78,8 @@ def run_campaign_demo(
         sweep=sweep,
         title=f"beambench demo campaign: {len(logs)} synthetic runs of {duration_s:g} s",
     )
+    if outcome.flagged:
+        report(f"{len(outcome.flagged)} runs flagged: {', '.join(outcome.flagged)}")
     if outcome.failed:
         report(f"{len(outcome.failed)} runs failed: {', '.join(outcome.failed)}")
     return {

@@ -98,8 +98,10 @@ def process_task(spec: RunSpec) -> dict[str, Any]:
     ds = processed.results
     row = base_row(spec)
     row.update(summarise_run(ds))
+    flag = flag_reason(processed, spec)
     row.update(
-        status="ok",
+        status="ok" if flag is None else "flagged",
+        error=flag or "",
         warnings="\n".join(collect.lines),
         results_file=spec.results_path,
         log_sha256=sha256_file(spec.log_path),
@@ -112,6 +114,20 @@ def process_task(spec: RunSpec) -> dict[str, Any]:
         **_run_info(ds),
     )
     return row
+
+
+def flag_reason(processed: Any, spec: RunSpec) -> str | None:
+    """Why a processed run's results may not be taken as they are (``None``: they may):
+    no frame was measured (``process`` exits 2 with this line; its DAQ-only results are
+    written all the same)."""
+    failures = processed.failures
+    if failures.total and not failures.measured:
+        return (
+            f"{spec.log_path}: none of the {failures.total} frames was measured; "
+            f"{failures.advice()}. The DAQ-only results (strains, potentiometer, simulation) "
+            f"were written to {spec.results_path}"
+        )
+    return None
 
 
 def peak_rss_bytes() -> int:

@@ -118,12 +118,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"recording {write_campaign_rrd(catalogue, rrd, sweep=sweep)}")
     print(
         f"{len(outcome.processed)} processed, {len(outcome.skipped)} skipped, "
-        f"{len(outcome.failed)} failed; catalogue {outcome.catalogue_path}, report {report}"
+        f"{len(outcome.failed)} failed (of the processed, {len(outcome.flagged)} flagged); "
+        f"catalogue {outcome.catalogue_path}, report {report}"
     )
-    for name in outcome.failed:
-        err = str(outcome.rows[name]["error"]).splitlines()[0]
-        print(f"failed: {name}: {err}", file=sys.stderr)
-    return EXIT_SOME_FAILED if outcome.failed else 0
+    for label, names in (("flagged", outcome.flagged), ("failed", outcome.failed)):
+        for name in names:
+            err = str(outcome.rows[name]["error"]).splitlines()[0]
+            print(f"{label}: {name}: {err}", file=sys.stderr)
+    return EXIT_SOME_FAILED if outcome.failed or outcome.flagged else 0
 
 
 def _check_rrd(path: str, logs: list[Path], sweep: str | None) -> Path:

@@ -192,7 +192,7 @@ def _check_bounds(args: argparse.Namespace) -> None:
     samples = duration * rate
     solve_s = duration * SOLVE_S_PER_S.get(args.model, SOLVE_S_PER_S["fe"])
     cost = (
-        f"{samples:.3g} output samples at {rate:g} Hz and about {_human_s(solve_s)} of "
+        f"{samples:.3g} output samples at {rate:g} Hz and about {human_s(solve_s)} of "
         f"solving with --model {args.model}"
     )
     if duration > MAX_DURATION_S:
@@ -207,7 +207,7 @@ def _check_bounds(args: argparse.Namespace) -> None:
         )
 
 
-def _human_s(seconds: float) -> str:
+def human_s(seconds: float) -> str:
     if seconds < 120:
         return f"{seconds:.0f} s"
     if seconds < 7200:

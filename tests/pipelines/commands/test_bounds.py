@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from pipelines.cli import build_parser, main
+from pipelines.errors import BeambenchError
 from pipelines.rig import default_rig_text
 from vision.codec import MAX_SIDE_PX, decode, encode, header_size_px
 from vision.errors import ImageSizeError
@@ -159,3 +160,39 @@ def test_measure_refuses_a_png_header_claiming_100000_px(
     cal.write_text(Calibration(np.array(img), np.array(plane)).to_json())
     err = _refused(["measure", str(image), "--calibration", str(cal)], capsys)
     assert f"{image}: the image header claims 100000 x 100000 px" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (
+            ["--crank-hz", "0.001"],
+            ["--crank-hz 0.001 Hz", "67 min", "at most 1200 s a point", "from 0.00334 Hz"],
+        ),
+        (["--crank-hz", "0.001:1:3"], ["--crank-hz 0.001 Hz", "at most 1200 s a point"]),
+        (
+            ["--crank-hz", "0.5:2:5000"],
+            ["5000 points would simulate", "of solving with --model auto", "6.7 h"],
+        ),
+        (["--crank-hz", "1", "--a1", "0.1,1e6"], ["--a1 1e+06 s: at most 10 s"]),
+    ],
+)
+def test_sweep_refuses_unbounded_work(
+    argv: list[str], words: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # refused before any cluster starts (one line, exit 2, nothing written)
+    out = tmp_path / "sweep.nc"
+    err = _refused(["sweep", "reciprocating", *argv, "--out", str(out)], capsys)
+    for w in words:
+        assert w in err, err
+    assert not out.exists()
+
+
+def test_a_sweep_within_the_limits_is_not_refused() -> None:
+    from pipelines.commands.sweep import MAX_SWEEP_SIMULATED_S, check_sweep_cost
+
+    check_sweep_cost([4 / (1200.0 - 3.0)], [0.1], "auto")  # the slowest point allowed
+    n = int(MAX_SWEEP_SIMULATED_S // 7.0)
+    check_sweep_cost([1.0] * n, [0.1], "auto")  # 7 s a point at 1 Hz
+    with pytest.raises(BeambenchError, match="points would simulate"):
+        check_sweep_cost([1.0] * (n + 1), [0.1], "auto")

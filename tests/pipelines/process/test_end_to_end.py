@@ -17,16 +17,19 @@ import pytest
 from pipelines.demo import capture_synthetic, truth_notes
 from pipelines.process.run import process_run, write_processed
 from pipelines.results.io import read_results
-from pipelines.rig import Rig, load_rig
+from pipelines.rig import HubConfig, Rig, load_rig
 
 DURATION_S = 4.0
 
 
 def e2e_rig(model: str = "modal") -> Rig:
-    """The default rig, full-size camera, a 3 s warm-up so the run starts settled."""
+    """The default rig, full-size camera, a 3 s warm-up so the run starts settled, and a
+    200 x 40 mm hub: the hub these figures were set on (the synthetic camera draws the
+    rig's [hub]; the default's is the paper's 68 x 51 mm block, which
+    tests/pipelines/acquire/test_synthetic_bench.py processes)."""
     rig = load_rig()
     syn = dataclasses.replace(rig.synthetic, model=model, warmup_s=3.0)
-    return dataclasses.replace(rig, synthetic=syn)
+    return dataclasses.replace(rig, synthetic=syn, hub=HubConfig(length_m=0.2, width_m=0.04))
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +49,10 @@ def test_processed_run_matches_the_synthetic_truth(
     n_frames = ds.sizes["frame_time"]
     assert n_frames == pytest.approx(DURATION_S * 15, abs=2)
     assert ds["frame_ok"].values.mean() > 0.95
+    # the hub the frames show is the one the rig describes and the camera drew
+    assert ds.attrs["hub_length_measured_m"] == pytest.approx(0.2, abs=0.5e-3)
+    assert ds.attrs["hub_width_measured_m"] == pytest.approx(0.04, abs=0.5e-3)
+    assert ds.attrs["hub_offset_measured_m"] == pytest.approx(0.008, abs=0.2e-3)
     # camera clock offset found: frame times land on the true exposure mid-points
     bench = devices.bench  # type: ignore[attr-defined]
     cam = devices.camera  # type: ignore[attr-defined]
