@@ -178,12 +178,6 @@ def test_measured_within_the_stated_uncertainty_with_the_calibration_known(
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="#20: the registration detected in the frames biases the hub angle (here 0.024 deg "
-    "RMS, up to 5.6 stated sd; the tip 0.29 mm on average) and the stated uncertainty leaves "
-    "calibration out (vision/calibration, registration)",
-)
 def test_measured_within_the_stated_uncertainty_with_the_registration_detected(
     captured: Captured, detected: Processed
 ) -> None:
