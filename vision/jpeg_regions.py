@@ -185,10 +185,9 @@ def splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytes:
     data = memoryview(layout.data)
     parts: list[bytes | memoryview] = [bytes(head)]
     starts, ends = layout.starts_list, layout.ends_list
-    rst = _RST
     for j, s in enumerate(segments.tolist()):
         if j:
-            parts.append(rst[(j - 1) & 7])
+            parts.append(_RST[(j - 1) & 7])
         parts.append(data[starts[s] : ends[s]])
     parts.append(b"\xff\xd9")
     return b"".join(parts)

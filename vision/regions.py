@@ -229,10 +229,13 @@ class RegionReader:
         scans = self._reach_m(w) + _OFF_CHORD_WIDTHS * w
         half_out = max(half, 0.75 * w + scans)
         half_in = max(half, 0.75 * hub_w + scans)
-        mask = np.zeros(shape, dtype=np.uint8)
-        self._tube(mask, np.array([p2, p2 + out_len * d0]), half_out)
-        self._tube(mask, np.array([p1, p1 - in_len * d0]), half_in)
-        return mask.astype(bool)
+        return self._tubes(
+            shape,
+            [
+                (np.array([p2, p2 + out_len * d0]), half_out),
+                (np.array([p1, p1 - in_len * d0]), half_in),
+            ],
+        )
 
     def _read(
         self,
@@ -257,62 +260,77 @@ class RegionReader:
         half = _PROFILE_HALF_WIDTHS * w + 2 * self.measurer.px_m
         out_end = float((tip - p2) @ d0) + 2 * _STEP_OUT_WIDTHS * w + 4 * w
         in_end = float((p1 - back) @ d0) + 2 * _STEP_IN_WIDTHS * w
-        mask = np.zeros(shape, dtype=np.uint8)
-        self._tube(mask, np.array([p2, p2 + max(out_end, 0.0) * d0]), half)
-        self._tube(mask, np.array([p1, p1 - max(in_end, 0.0) * d0]), half)
+        tubes = [
+            (np.array([p2, p2 + max(out_end, 0.0) * d0]), half),
+            (np.array([p1, p1 - max(in_end, 0.0) * d0]), half),
+        ]
         beam_r = 0.75 * w + reach
         if math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px:
             # smeared: centroid cuts reach 1.5 smears + half a width + 3 px either side
             beam_r += 1.5 * self.measurer.max_smear_px * self.measurer.px_m * 1.5
-        self._tube(mask, line, beam_r)
+        tubes.append((line, beam_r))
         # the tip's searches: single lines along the tangent, up to 4 widths on
         pad = 6 * self.measurer.px_m
-        self._tube(mask, np.vstack([tip, tip + 4.5 * w * _unit(tip - line[-2])]), 0.5 * w + pad)
+        tubes.append((np.vstack([tip, tip + 4.5 * w * _unit(tip - line[-2])]), 0.5 * w + pad))
         e = _unit(clamp - back)
         hub_line = np.array([back - 0.5 * hub_w * e, clamp + 0.5 * hub_w * e])
-        self._tube(mask, hub_line, 0.75 * hub_w + reach)
+        tubes.append((hub_line, 0.75 * hub_w + reach))
         faces = np.array([back - hub_w * e, clamp + hub_w * e])
-        self._tube(mask, faces, 0.5 * hub_w + pad)
-        return mask.astype(bool)
+        tubes.append((faces, 0.5 * hub_w + pad))
+        return self._tubes(shape, tubes)
 
     def _reach_m(self, w: float) -> float:
         # px beyond the strip, in the plane, with room for perspective (1.5x the pivot's
         # pixel size) and a pixel of bilinear reach
         return (_SCAN_REACH_PX + 2.0) * self.measurer.px_m * 1.5
 
-    def _tube(self, mask: NDArray[np.uint8], line_m: NDArray[np.float64], half_m: float) -> None:
-        """Mark the blocks within ``half_m`` (plane) of a polyline (plane, m), its ends
-        extended by ``half_m``, plus one block all round (in place)."""
-        line = np.asarray(line_m, dtype=np.float64)
-        line = line[np.all(np.isfinite(line), axis=1)]
-        if len(line) < 2:
-            return
-        # dense along the line: straight in the plane is curved in the image
-        seg = np.hypot(*np.diff(line, axis=0).T)
-        s = np.concatenate(([0.0], np.cumsum(seg)))
-        if s[-1] <= 0:
-            return
-        n_pts = max(2, int(s[-1] / (0.5 * half_m)) + 2)
-        sq = np.linspace(0.0, s[-1], n_pts)
-        pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
-        t = np.gradient(pts, axis=0)
-        t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
-        pts[0] -= half_m * t[0]
-        pts[-1] += half_m * t[-1]
-        nrm = np.column_stack([-t[:, 1], t[:, 0]])
-        both = np.vstack([pts, pts + half_m * nrm, pts - half_m * nrm])
-        px = self.measurer.calibration.to_px(both)
-        if not np.all(np.isfinite(px)):
-            mask[:] = 1  # a band that reaches behind the camera: everything
-            return
-        centre, side_a, side_b = np.split(px, 3)
-        half_px = float(
-            max(np.hypot(*(side_a - centre).T).max(), np.hypot(*(side_b - centre).T).max())
-        )
-        # a thick polyline (round ends and joins) in blocks, a block of slack all round
-        thick = min(2 * math.ceil(half_px / _BLOCK_PX) + 3, 32767)
-        blk = np.clip(centre / _BLOCK_PX * 16.0, -(2**27), 2**27).round().astype(np.int32)
-        cv2.polylines(mask, [blk.reshape(-1, 1, 2)], False, 1, thickness=thick, shift=4)
+    def _tubes(
+        self, shape: tuple[int, int], tubes: list[tuple[NDArray[np.float64], float]]
+    ) -> NDArray[np.bool_]:
+        """The blocks within ``half_m`` (plane) of polylines ``(line (K, 2) plane m,
+        half_m)``, each line's ends extended by its ``half_m``, and a block more all
+        round; everything when a line reaches behind the camera."""
+        dense, halves = [], []
+        for line_m, half_m in tubes:
+            line = np.asarray(line_m, dtype=np.float64)
+            line = line[np.all(np.isfinite(line), axis=1)]
+            if len(line) < 2:
+                continue
+            # dense along the line: straight in the plane is curved in the image
+            s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))))
+            if s[-1] <= 0:
+                continue
+            sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
+            pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
+            t = np.gradient(pts, axis=0)
+            t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
+            pts[0] -= half_m * t[0]
+            pts[-1] += half_m * t[-1]
+            nrm = np.column_stack([-t[:, 1], t[:, 0]])
+            dense.append(np.vstack([pts, pts + half_m * nrm, pts - half_m * nrm]))
+            halves.append(len(pts))
+        mask = np.zeros(shape, dtype=np.uint8)
+        if not dense:
+            return mask.astype(bool)
+        px_all = self.measurer.calibration.to_px(np.vstack(dense))
+        if not np.all(np.isfinite(px_all)):
+            return np.ones(shape, dtype=bool)
+        i = 0
+        for k in halves:
+            centre, side_a, side_b = (
+                px_all[i : i + k],
+                px_all[i + k : i + 2 * k],
+                px_all[i + 2 * k : i + 3 * k],
+            )
+            i += 3 * k
+            half_px = float(
+                max(np.hypot(*(side_a - centre).T).max(), np.hypot(*(side_b - centre).T).max())
+            )
+            # a thick polyline (round ends and joins) in blocks, a block of slack all round
+            thick = min(2 * math.ceil(half_px / _BLOCK_PX) + 3, 32767)
+            blk = np.clip(centre / _BLOCK_PX * 16.0, -(2**27), 2**27).round().astype(np.int32)
+            cv2.polylines(mask, [blk.reshape(-1, 1, 2)], False, 1, thickness=thick, shift=4)
+        return mask.astype(bool)
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
