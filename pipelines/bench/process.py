@@ -39,9 +39,13 @@ def _decode_share(log_path: Path, calibration: object, stations: tuple[float, ..
     reader = RegionReader(measurer)
     t_read = t_meas = 0.0
     for k, frame in enumerate(iter_frames(log_path)):
-        if k >= 20:
+        if k > 20:
             break
         image = decode(frame.data)
+        if k == 0:  # a warm-up: each sets up its sampling plans on its first frame
+            reader.measure(frame.data)
+            measurer.measure(image)
+            continue
         t0 = time.perf_counter()
         reader.measure(frame.data)
         t1 = time.perf_counter()
