@@ -130,6 +130,8 @@ class RegionReader:
         shape = (layout.mcu_rows, layout.per_row * layout.interval)
         ring = self._rings(layout, shape)
         ring_segs = segments_of_blocks(layout, ring)
+        if ring_segs.size == 0:  # the circles miss the image: the measurement says why
+            return None
         try:
             strip = decode_segments(layout, ring_segs)
         except ValueError:
@@ -207,8 +209,8 @@ class RegionReader:
         behind_m: float | None = None,
     ) -> NDArray[np.bool_]:
         """The blocks the measurement should read, before it: the bands about the chord,
-        widened by the scans' reach; behind the pivot to the previous frame's hub, or
-        a beam length without a track."""
+        widened by the scans' reach; behind the pivot to the previous frame's hub (the
+        track), :data:`_HUB_BACK_M` without one, or ``behind_m``."""
         w = self._w
         d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
         # the bands the check asks for, and two blocks more (the two are rasterised from
