@@ -15,13 +15,16 @@ Modules, roughly in the order of the data flow:
 - ``registration``: finds the registration object in a frame and calibrates from it.
 - ``calibration_error``: what the calibration's own error does to the plane and to each
   frame's hub angle and tip (one error common to all frames).
-- ``codec``: JPEG/PNG bytes <-> uint8 gray images.
+- ``codec``: JPEG/PNG bytes <-> uint8 gray images (JPEGs with restart markers);
+  ``jpeg_regions``: a JPEG's restart segments decoded alone.
 - ``sampling``, ``edges``: image sampling and sub-pixel edges along scan lines.
 - ``locate``: rough location of beam and hub in the plane.
 - ``hub``: the hub's axis and end faces; ``centreline``: the beam's fitted centre line.
 - ``frame_measurement``: :class:`FrameMeasurement`, what one frame shows.
 - ``measure``: :class:`Measurer`, the per-frame measurement and its default method;
   ``paper_chain``: the paper's method, from a calibration.
+- ``regions``: :class:`~vision.regions.RegionReader`, a run's frames decoded only where
+  the measurement reads them, with the same results.
 - ``synthetic``: the scene (``scene``), its rasteriser (``render``) and the camera's
   placement (``pose``), for the synthetic bench and the tests.
 """

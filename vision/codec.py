@@ -25,6 +25,12 @@ from vision.errors import (
 # gray image is 268 MB, so a forged header cannot make the decoder allocate more
 MAX_SIDE_PX = 16384
 
+#: The restart interval :func:`encode` writes into JPEGs (MCUs per segment; 16 MCUs are
+#: 128 px of one 8-pixel row of a gray image, a 2048 px row 16 segments), so that the
+#: parts of a frame that are measured can be decoded alone (:mod:`vision.jpeg_regions`).
+#: The markers cost 2 bytes and the padding to a byte boundary each.
+RST_INTERVAL_MCU = 16
+
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # JPEG start-of-frame markers (baseline, progressive, lossless, ...): not DHT, JPG or DAC
 _SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
@@ -115,14 +121,27 @@ def decode(data: bytes) -> NDArray[np.uint8]:
     return np.ascontiguousarray(img)
 
 
-def encode(image: NDArray[np.uint8], encoding: str = "jpeg", quality: int = 90) -> bytes:
-    """Compress a uint8 gray [row, col] image as JPEG (``quality`` 1-100) or PNG."""
+def encode(
+    image: NDArray[np.uint8],
+    encoding: str = "jpeg",
+    quality: int = 90,
+    restart_interval_mcu: int = RST_INTERVAL_MCU,
+) -> bytes:
+    """Compress a uint8 gray [row, col] image as JPEG (``quality`` 1-100; a restart
+    marker every ``restart_interval_mcu`` MCUs, 0 for none) or PNG."""
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 2:
         raise TypeError("image must be a uint8 [row, col] numpy array")
     if encoding == "jpeg":
         if not 1 <= quality <= 100:
             raise ParameterError("quality", f"must be in 1..100, got {quality!r}")
-        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+        if not 0 <= restart_interval_mcu <= 65535:
+            raise ParameterError(
+                "restart_interval_mcu", f"must be in 0..65535, got {restart_interval_mcu!r}"
+            )
+        params = [cv2.IMWRITE_JPEG_QUALITY, int(quality)]
+        if restart_interval_mcu:
+            params += [cv2.IMWRITE_JPEG_RST_INTERVAL, int(restart_interval_mcu)]
+        ok, buf = cv2.imencode(".jpg", image, params)
     elif encoding == "png":
         ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     else:

@@ -224,18 +224,12 @@ def _circle_candidates(
     return out
 
 
-def locate(
-    image: NDArray[np.uint8],
-    to_px: ToPx,
-    beam_length: float,
-    beam_width: float,
-    px_m: float,
-    circles: SearchCircles | None = None,
-) -> Rough:
-    """Find the beam around the pivot and follow it to the tip and back over the hub.
-    ``circles``: :func:`search_circles` of this placement, when already mapped."""
-    if circles is None:
-        circles = search_circles(to_px, beam_length, beam_width, px_m)
+def crossings(
+    image: NDArray[np.uint8], circles: SearchCircles, beam_width: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """Where the beam crosses the two search circles (plane, m): the strongest pair of
+    strips of its width, one on each circle, at angles within 0.12 rad; None when there
+    is none. Reads the image only on the circles (and one pixel beside them)."""
     r1, r2 = circles.radii
     step = circles.step
     v1, v2 = circles.sample(image)
@@ -248,10 +242,29 @@ def locate(
             if abs(d) < 0.12 and (best is None or k1 + k2 > best[2]):
                 best = (a1, a2, k1 + k2)
     if best is None:
-        raise FrameFailure("no beam found (no bright strip of the beam's width about the pivot)")
+        return None
     a1, a2, _ = best
     p1 = r1 * np.array([np.cos(a1), np.sin(a1)])
     p2 = r2 * np.array([np.cos(a2), np.sin(a2)])
+    return p1, p2
+
+
+def locate(
+    image: NDArray[np.uint8],
+    to_px: ToPx,
+    beam_length: float,
+    beam_width: float,
+    px_m: float,
+    circles: SearchCircles | None = None,
+) -> Rough:
+    """Find the beam around the pivot and follow it to the tip and back over the hub.
+    ``circles``: :func:`search_circles` of this placement, when already mapped."""
+    if circles is None:
+        circles = search_circles(to_px, beam_length, beam_width, px_m)
+    found = crossings(image, circles, beam_width)
+    if found is None:
+        raise FrameFailure("no beam found (no bright strip of the beam's width about the pivot)")
+    p1, p2 = found
     d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
     outward = _follow(
         image, to_px, p2, d0, beam_width, 5.0 * beam_width, beam_length * 0.7, px_m, 2.5

@@ -29,13 +29,19 @@ from daq.records import Frame
 log = logging.getLogger(__name__)
 
 STILL_SUFFIXES = (".jpg", ".jpeg", ".png")
+#: A restart marker every this many MCUs in the JPEGs written: the processing decodes only
+#: the segments between markers that it measures (vision's codec writes the same; other
+#: JPEG readers are unaffected). 16 MCUs: 128 px of an 8-row band of a gray frame.
+JPEG_RST_INTERVAL_MCU = 16
 
 
 def _encode(image: Any, encoding: str, jpeg_quality: int) -> bytes:
     import cv2
 
     if encoding == "jpeg":
-        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
+        params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)]
+        params += [cv2.IMWRITE_JPEG_RST_INTERVAL, JPEG_RST_INTERVAL_MCU]
+        ok, buf = cv2.imencode(".jpg", image, params)
     else:
         ok, buf = cv2.imencode(".png", image)
     if not ok:

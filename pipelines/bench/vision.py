@@ -22,6 +22,12 @@ Sets (all 2048 x 1536, truth from the renderer):
 Besides the errors, each set's line gives the stated uncertainty's coverage: the fraction
 of measured frames whose hub angle and tip lateral errors lie within 3 stated standard
 uncertainties (a method that states none shows "-").
+A second table times both methods with the JPEG decode included: each frame encoded as
+the capture writes it (:func:`vision.codec.encode`, quality 90, restart markers), the paper
+chain decoding it whole, the default method through :class:`vision.regions.RegionReader`
+(only the segments it measures; the same result as from the whole JPEG, which the table
+checks: its last column is the largest difference in the hub angle and the tip over the
+set). Its errors are those of the JPEG frames.
 Per-frame errors use the calibration from the true registration corners (the per-frame
 chain alone); the last lines give the automatic registration detection's corner error,
 what measuring with the detected registration instead of the true one changes, and the
@@ -50,6 +56,7 @@ from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
 from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.measure import METHODS
+from vision.regions import RegionReader
 from vision.synthetic.render import render_frame
 from vision.synthetic.scene import BeamMotion, BeamPose, Clutter, RenderTruth, SceneSpec
 
@@ -342,6 +349,52 @@ def _time_methods(
     return best, results
 
 
+#: The capture's JPEG quality (the rig's and the synthetic camera's default).
+CAPTURE_QUALITY = CameraConfig().jpeg_quality
+
+
+def _time_decoded(
+    frames: list[Frame], repeats: int
+) -> tuple[dict[str, float], dict[str, list[FrameMeasurement]], tuple[float, float], float]:
+    """Seconds per pass with the JPEG decode included (the methods taking turns, the
+    fastest pass of each), each method's results, the largest difference (hub rad, tip
+    lateral m) of the default method's parts from the same JPEGs decoded whole, and the
+    fraction of segments decoded."""
+    jpegs = [encode(f.image, "jpeg", CAPTURE_QUALITY) for f in frames]
+    cals = {id(f.calibration): f.calibration for f in frames}
+    readers = {k: RegionReader(Measurer(c)) for k, c in cals.items()}
+    papers = {k: Measurer(c, method="paper") for k, c in cals.items()}
+
+    def default() -> list[FrameMeasurement]:
+        return [readers[id(f.calibration)].measure(j) for f, j in zip(frames, jpegs, strict=True)]
+
+    def paper() -> list[FrameMeasurement]:
+        return [
+            papers[id(f.calibration)].measure(decode(j)) for f, j in zip(frames, jpegs, strict=True)
+        ]
+
+    runs = {"default": default, "paper": paper}
+    for fn in runs.values():  # warm-up
+        fn()
+    best = dict.fromkeys(runs, math.inf)
+    results: dict[str, list[FrameMeasurement]] = {}
+    for _ in range(repeats):
+        for name, fn in runs.items():
+            t0 = time.perf_counter()
+            results[name] = fn()
+            best[name] = min(best[name], time.perf_counter() - t0)
+    whole = [Measurer(f.calibration).measure(decode(j)) for f, j in zip(frames, jpegs, strict=True)]
+    d_hub = d_tip = 0.0
+    for a, b in zip(results["default"], whole, strict=True):
+        if a.ok != b.ok:
+            d_hub = d_tip = math.inf
+        elif a.ok:
+            d_hub = max(d_hub, abs(a.hub_angle_rad - b.hub_angle_rad))
+            d_tip = max(d_tip, abs(a.tip_lateral_m - b.tip_lateral_m))
+    fractions = [x for r in readers.values() for x in r.stats.decoded_fraction]
+    return best, results, (d_hub, d_tip), float(np.mean(fractions)) if fractions else math.nan
+
+
 def _errors(
     frames: list[Frame], results: list[FrameMeasurement], seconds: float
 ) -> dict[str, float]:
@@ -438,8 +491,10 @@ def run(quick: bool, sets: tuple[str, ...] = SETS) -> int:
     ratios: list[str] = []
     total = dict.fromkeys(METHODS, 0.0)
     bias: dict[str, list[float]] = {"hub": [], "lat": [], "hub_sd": [], "lat_sd": []}
+    decoded_sets: list[tuple[str, list[Frame]]] = []
     for kind in sets:
         frames, corner_err = _frames(kind, n, SEEDS[kind])
+        decoded_sets.append((kind, frames))
         corner_all += corner_err
         for key, values in _registration_bias(frames).items():
             bias[key] += values
@@ -458,6 +513,24 @@ def run(quick: bool, sets: tuple[str, ...] = SETS) -> int:
             total[method] += seconds[method]
     ratios.append(f"all {len(sets) * n} frames {total['paper'] / total['default']:.2f}x")
     print("default against the paper chain (speed): " + ", ".join(ratios))
+    print(
+        f"with the JPEG decode (quality {CAPTURE_QUALITY}, restart markers; the paper chain "
+        "decodes whole, the default method the segments it measures):"
+    )
+    print(
+        f"{'set':17s} {'default f/s':>11s} {'paper f/s':>9s} {'ratio':>6s} {'segments':>8s} "
+        f"{'hub deg rms':>11s} {'tip lat mm rms':>14s} {'parts-whole hub deg/tip mm':>27s}"
+    )
+    for kind, frames in decoded_sets:
+        sec, res, (d_hub, d_tip), frac = _time_decoded(frames, repeats)
+        r = _errors(frames, res["default"], sec["default"])
+        rp = _errors(frames, res["paper"], sec["paper"])
+        print(
+            f"{kind:17s} {r['fps']:11.1f} {rp['fps']:9.1f} "
+            f"{sec['paper'] / sec['default']:5.2f}x {frac:8.0%} "
+            f"{r['hub_rms']:11.4f} {r['lat_rms']:14.3f} "
+            f"{math.degrees(d_hub):15.2g}/{d_tip * 1e3:<11.2g}"
+        )
     ce = np.array(corner_all)
     print(
         f"registration detection: max corner error {np.nanmax(ce):.3f} px over "

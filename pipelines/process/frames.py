@@ -2,7 +2,10 @@
 
 Frames are decoded and measured in worker processes, each building its
 ``vision.Measurer`` once (initializer), so only the encoded bytes cross process
-boundaries. Results come back in frame order.
+boundaries. Results come back in frame order. Each worker decodes through a
+``vision.regions.RegionReader``: of a JPEG with restart markers (beambench's capture
+writes them) only the parts the measurement reads, with the same result; other frames
+whole.
 
 A worker that dies (killed, out of memory, its resource tracker gone) or a pool that stops
 making progress is a :class:`WorkerError` within seconds, never a wait without end: the
@@ -28,8 +31,9 @@ from typing import Any
 import numpy as np
 
 from pipelines.errors import BeambenchError
-from vision import Calibration, FrameMeasurement, Measurer, decode
+from vision import Calibration, FrameMeasurement, Measurer
 from vision.calibration_error import frame_calibration_sd
+from vision.regions import RegionReader
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +50,7 @@ class WorkerError(BeambenchError):
     """A frame-measuring worker process died or the pool stopped making progress."""
 
 
-_measurer: Measurer | None = None
+_reader: RegionReader | None = None
 
 
 @dataclass(frozen=True)
@@ -61,8 +65,9 @@ def _init_worker(
     stations_m: tuple[float, ...],
     method: str,
     max_tip_uncertainty_m: float | None = None,
+    decode_parts: bool = True,
 ) -> None:
-    global _measurer
+    global _reader
     # One thread per worker: the workers already use every core.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
@@ -71,7 +76,8 @@ def _init_worker(
         cv2.setNumThreads(1)
     except ImportError:  # pragma: no cover - opencv is a dependency
         pass
-    _measurer = measurer_for(calibration, stations_m, method, max_tip_uncertainty_m)
+    measurer = measurer_for(calibration, stations_m, method, max_tip_uncertainty_m)
+    _reader = RegionReader(measurer, parts=decode_parts)
 
 
 def measurer_for(
@@ -91,16 +97,8 @@ def measurer_for(
 
 
 def _measure_chunk(items: list[tuple[int, int, bytes]]) -> list[MeasuredFrame]:
-    assert _measurer is not None
-    return [MeasuredFrame(t_ns, seq, _measure_bytes(_measurer, data)) for t_ns, seq, data in items]
-
-
-def _measure_bytes(measurer: Measurer, data: bytes) -> FrameMeasurement:
-    try:
-        image = decode(data)
-    except ValueError as exc:
-        return FrameMeasurement(ok=False, reason=f"cannot decode frame: {exc}")
-    return measurer.measure(image)
+    assert _reader is not None
+    return [MeasuredFrame(t_ns, seq, _reader.measure(data)) for t_ns, seq, data in items]
 
 
 def measure_frames(
@@ -112,10 +110,12 @@ def measure_frames(
     workers: int | None = None,
     progress: Callable[[int], None] | None = None,
     max_tip_uncertainty_m: float | None = None,
+    decode_parts: bool = True,
 ) -> list[MeasuredFrame]:
     """Measure ``frames`` (objects with ``t_ns``, ``sequence``, ``data``) in order;
     ``max_tip_uncertainty_m`` (default: vision's) refuses frames whose stated tip lateral
-    uncertainty exceeds it.
+    uncertainty exceeds it. ``decode_parts=False`` decodes every frame whole (the same
+    results, slower: the comparison ``bench process`` prints).
 
     ``workers`` defaults to the number of cores; 1 measures in this process. Workers are
     spawned, so a script calling this needs the usual ``if __name__ == "__main__":`` guard.
@@ -126,7 +126,7 @@ def measure_frames(
         (int(f.t_ns), int(f.sequence), bytes(f.data)) for f in frames
     )
     if n_workers <= 1:
-        return _measure_here(items, calibration, stations_m, method, progress, limit)
+        return _measure_here(items, calibration, stations_m, method, progress, limit, decode_parts)
     chunks = _chunks(items)
     first = next(chunks, None)
     if first is None:
@@ -140,7 +140,7 @@ def measure_frames(
             why,
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress)
+        return _measure_here(rest, calibration, stations_m, method, progress, limit, decode_parts)
     # Spawned, not forked: a fork copies the threads of rerun and the log reader
     # half-way through whatever they hold, and the children can hang.
     pool = None
@@ -149,7 +149,7 @@ def measure_frames(
             max_workers=n_workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_init_worker,
-            initargs=(calibration, stations_m, method, limit),
+            initargs=(calibration, stations_m, method, limit, decode_parts),
         )
         head = pool.submit(_measure_chunk, first)
     except OSError as exc:
@@ -163,7 +163,7 @@ def measure_frames(
             exc,
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress, limit)
+        return _measure_here(rest, calibration, stations_m, method, progress, limit, decode_parts)
     out: list[MeasuredFrame] = []
     # the chunks handed to the pool before its first result: measured here if no worker
     # ever answers (workers that die at start, e.g. a user who cannot execute the
@@ -183,7 +183,7 @@ def measure_frames(
         _abandon(pool)
         log.warning("%s; measuring in this process instead", exc)
         rest = itertools.chain(*unanswered, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress, limit)
+        return _measure_here(rest, calibration, stations_m, method, progress, limit, decode_parts)
     finally:
         if ok:
             pool.shutdown(wait=True)
@@ -211,11 +211,13 @@ def _measure_here(
     method: str,
     progress: Callable[[int], None] | None,
     max_tip_uncertainty_m: float | None = None,
+    decode_parts: bool = True,
 ) -> list[MeasuredFrame]:
     measurer = measurer_for(calibration, stations_m, method, max_tip_uncertainty_m)
+    reader = RegionReader(measurer, parts=decode_parts)
     out = []
     for t_ns, seq, data in items:
-        out.append(MeasuredFrame(t_ns, seq, _measure_bytes(measurer, data)))
+        out.append(MeasuredFrame(t_ns, seq, reader.measure(data)))
         if progress:
             progress(1)
     return out

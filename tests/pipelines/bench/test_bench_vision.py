@@ -19,3 +19,16 @@ def test_both_methods_time_the_same_frames_and_measure_them() -> None:
     err = bv._errors(frames, results["default"], seconds["default"])
     assert err["failed"] == 0
     assert err["lat_rms"] <= 0.06 and err["hub_rms"] <= 0.004 and err["lon_rms"] <= 0.08
+
+
+def test_decode_included_timing_measures_the_parts_as_the_whole() -> None:
+    """The decode-included table: both methods on the capture's JPEGs, the default
+    method's parts giving exactly what the whole JPEG gives."""
+    frames, _ = bv._frames("nominal", 2, 12)
+    seconds, results, (d_hub, d_tip), fraction = bv._time_decoded(frames, repeats=1)
+    assert all(math.isfinite(s) and s > 0 for s in seconds.values())
+    assert all(m.ok for m in results["default"]) and all(m.ok for m in results["paper"])
+    assert (d_hub, d_tip) == (0.0, 0.0)
+    assert 0.0 < fraction < 1.0
+    err = bv._errors(frames, results["default"], seconds["default"])
+    assert err["lat_rms"] <= 0.06 and err["hub_rms"] <= 0.004

@@ -1,0 +1,153 @@
+"""Measuring from the decoded parts of a frame: the same result as from the whole frame;
+a lost track (no beam, a jump) found again; frames that cannot be split decoded whole."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from vision.codec import decode, encode
+from vision.config import CameraConfig, CameraPoseConfig
+from vision.frame_measurement import FrameMeasurement
+from vision.measure import Measurer
+from vision.regions import RegionReader
+from vision.synthetic.render import render_frame
+
+# Not beambench's defaults: a smaller camera, rolled and tilted the other way, a longer
+# and wider hub (its back end 0.59 m behind the pivot, past the band first decoded
+# without a track), a darker background.
+CAMERA = CameraConfig(width_px=1280, height_px=1024, focal_length_px=900.0)
+POSE = CameraPoseConfig(
+    tilt_rad=math.radians(14.0), tilt_azimuth_rad=math.radians(200.0), roll_rad=math.radians(-4.0)
+)
+
+
+@pytest.fixture(scope="module")
+def scene(vt):
+    spec = vt.make_spec(
+        camera=CAMERA,
+        pose=POSE,
+        noise_dn=3.0,
+        seed=9,
+        hub_length_m=0.6,
+        hub_width_m=0.05,
+        background_dn=30.0,
+    )
+    rng = np.random.default_rng(4)
+    frames = []
+    for hub_deg, slope in ((250.0, 0.03), (262.0, -0.05), (318.0, 0.06), (300.0, 0.0)):
+        fr = render_frame(spec, [vt.bent(math.radians(hub_deg), slope)], rng=rng)
+        frames.append(fr.image)
+    cal = vt.truth_calibration(fr.truth)
+    return frames, cal
+
+
+def _same(a: FrameMeasurement, b: FrameMeasurement) -> None:
+    """Every field equal (arrays exactly)."""
+    assert a.ok == b.ok and a.reason == b.reason
+    for f in dataclasses.fields(FrameMeasurement):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray):
+            np.testing.assert_array_equal(x, y, err_msg=f.name)
+        elif isinstance(x, float) and math.isnan(x):
+            assert math.isnan(y), f.name
+        else:
+            assert x == y, f.name
+
+
+def test_parts_measure_as_the_whole_frame(scene) -> None:
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    for image in frames:
+        data = encode(image, "jpeg", 88)
+        got = reader.measure(data)
+        assert got.ok, got.reason
+        _same(got, measurer.measure(decode(data)))
+    assert reader.stats.parts == len(frames) and reader.stats.whole == 0
+    assert reader.hub_back_m == pytest.approx(0.6 - 0.008, abs=0.02)  # the track
+    assert max(reader.stats.decoded_fraction) < 0.6
+
+
+def test_a_region_read_beyond_what_was_decoded_is_decoded_and_measured_again(scene) -> None:
+    """A track that says the hub ends at the pivot (it reaches 0.59 m behind it): the
+    first decode cuts the hub short, the check finds the measurement read past it, the
+    rest is decoded and the frame measured again, as from the whole frame."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    data = encode(frames[2], "jpeg", 90)
+    reader.hub_back_m, reader.hub_w_m = 0.0, 0.02
+    _same(reader.measure(data), measurer.measure(decode(data)))
+    assert (reader.stats.parts, reader.stats.regrown) == (1, 1)
+
+
+def test_a_lost_track_is_found_again(scene) -> None:
+    """A frame without a beam (refused as the whole frame refuses it) loses the track;
+    the next frames, the beam far from where it was, are measured from their parts."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    rng = np.random.default_rng(1)
+    empty = np.clip(30 + rng.normal(0, 3, frames[0].shape), 0, 255).astype(np.uint8)
+    sequence = [frames[0], empty, frames[2], frames[1]]  # 250 deg, nothing, 318, 262
+    kinds = []
+    for image in sequence:
+        data = encode(image, "jpeg", 90)
+        before = reader.stats.parts
+        got = reader.measure(data)
+        _same(got, measurer.measure(decode(data)))
+        kinds.append(("parts" if reader.stats.parts > before else "whole", got.ok))
+        if not got.ok:
+            assert reader.hub_back_m is None  # lost
+    assert kinds == [("parts", True), ("whole", False), ("parts", True), ("parts", True)]
+
+
+def test_frames_that_cannot_be_split_are_decoded_whole(scene) -> None:
+    frames, cal = scene
+    image = frames[1]
+    for data in (
+        encode(image, "jpeg", 90, restart_interval_mcu=0),  # a foreign camera's JPEG
+        encode(image, "png"),
+        encode(image, "jpeg", 90, restart_interval_mcu=7),  # segments wrap the rows
+    ):
+        measurer = Measurer(cal)
+        reader = RegionReader(measurer)
+        _same(reader.measure(data), measurer.measure(decode(data)))
+        assert (reader.stats.parts, reader.stats.whole) == (0, 1)
+    paper = Measurer(cal, method="paper")
+    reader = RegionReader(paper)
+    data = encode(image, "jpeg", 90)
+    _same(reader.measure(data), paper.measure(decode(data)))
+    assert reader.stats.whole == 1
+    bad = RegionReader(Measurer(cal)).measure(b"\xff\xd8 not a jpeg")
+    assert not bad.ok and bad.reason.startswith("cannot decode frame")
+    with pytest.raises(TypeError, match="measurer"):
+        RegionReader(cal)  # type: ignore[arg-type]
+
+
+@pytest.mark.slow
+def test_flipped_bits_in_parts_never_give_a_wrong_ok(scene) -> None:
+    """Single-bit flips in a JPEG with restart markers: measured from its parts, a frame
+    still ``ok`` is within 0.5 mm of the clean frame's tip (the fuzz suite's tolerance),
+    and agrees with the damaged frame decoded whole when that is ok too."""
+    frames, cal = scene
+    data = encode(frames[0], "jpeg", 92)
+    measurer = Measurer(cal)
+    clean = measurer.measure(decode(data))
+    assert clean.ok
+    r = np.random.default_rng(7)
+    measured = 0
+    for _ in range(60):
+        out = bytearray(data)
+        i = int(r.integers(600, len(out) - 2))
+        out[i] ^= 1 << int(r.integers(8))
+        reader = RegionReader(measurer)
+        got = reader.measure(bytes(out))
+        if got.ok:
+            measured += 1
+            assert abs(got.tip_lateral_m - clean.tip_lateral_m) <= 0.5e-3
+    assert measured > 20

@@ -1,0 +1,349 @@
+"""Decode only what the measurement reads: a run's JPEG frames measured from their parts.
+
+:class:`RegionReader` measures encoded frames with a :class:`~vision.measure.Measurer`
+(default method) while decoding, of a JPEG with restart markers
+(:mod:`vision.jpeg_regions`), only the segments the measurement reads:
+
+1. the segments under the measurement's own two search circles about the pivot
+   (:func:`vision.locate.search_circles`, a few % of a frame), where
+   :func:`vision.locate.crossings` finds the beam as the measurement will;
+2. the band the rough location follows from those two crossings (+-5 beam widths about
+   their chord, outward past the tip and inward over the hub), widened by the reach of
+   the edge scans; how far the band runs behind the pivot comes from the previous
+   frame's hub (the track), the whole beam length without one;
+3. the measurement, on a full-size image whose other pixels are one gray level (the
+   median of the circles: a constant holds no strip, so a part not decoded cannot look
+   like beam or hub);
+4. the check: the region the measurement read, from its result (the band to the hub's
+   back end and past the tip, the edge scans about the hub and the beam, the tip's and
+   the clamp's face searches), must lie in what was decoded; a miss decodes the rest of
+   that region and measures again, once.
+
+A frame refused on its parts, a check missed twice, or crossings not found (a frame
+without a beam, a beam that jumped out of the previous frame's band) is decoded whole and
+measured as before (the track is then lost, and found again on the next frame that
+measures); so is every JPEG without restart markers or with damaged ones, every PNG,
+and every frame of the paper's method, which rectifies the whole frame. The
+measurement on the parts equals the one on the full frame wherever it reads only what
+was decoded, which the check makes so.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from vision.codec import decode
+from vision.frame_measurement import FrameMeasurement
+from vision.jpeg_regions import (
+    JpegLayout,
+    blank_canvas,
+    decode_segments,
+    image_of,
+    jpeg_layout,
+    paste,
+    segments_of_blocks,
+)
+from vision.locate import SearchCircles, crossings, search_circles
+from vision.measure import Measurer
+
+_BLOCK_PX = 8
+#: Reach of the edge scans beyond a strip's half width (px): the scan's margin, the
+#: widest window and the slant of a scan line across the strip (up to sqrt 2), rounded up.
+_SCAN_REACH_PX = 40.0
+#: The rough location's cross-profiles reach this many beam widths either side of the
+#: chord through the two crossings; its steps outward and inward, in beam widths.
+_PROFILE_HALF_WIDTHS = 5.0
+_STEP_OUT_WIDTHS = 2.5
+_STEP_IN_WIDTHS = 1.4
+#: Extra room behind the previous frame's hub (m): the hub's back end moves with the
+#: hub's angle along the chord only through the angle between the hub and the chord.
+_TRACK_SLACK_M = 0.05
+#: Without a track, the band is first decoded this far behind the pivot (m); a hub that
+#: reaches farther is found cut short by the check, which then decodes the rest.
+_HUB_BACK_M = 0.3
+#: How far (beam widths) the beam's and the hub's centre lines are allowed for off the
+#: chord through the crossings in the first decode (farther: the check decodes the rest).
+_OFF_CHORD_WIDTHS = 2.0
+
+
+@dataclass
+class RegionStats:
+    """What a :class:`RegionReader` did: frames measured from parts / whole, and the
+    fraction of the segments decoded for those measured from parts."""
+
+    parts: int = 0
+    whole: int = 0
+    regrown: int = 0
+    decoded_fraction: list[float] = field(default_factory=list)
+
+
+class RegionReader:
+    """Decode-and-measure of a run's frames in order, decoding JPEGs in parts where it
+    can (see the module's notes); the results are the measurer's on the full frames."""
+
+    def __init__(self, measurer: Measurer, *, parts: bool = True) -> None:
+        if not isinstance(measurer, Measurer):
+            raise TypeError(f"measurer must be a Measurer, got {type(measurer).__name__}")
+        self.measurer = measurer
+        #: False: every frame decoded whole (the comparison in ``bench process``)
+        self.parts = bool(parts)
+        cal = measurer.calibration
+        self._w = cal.beam_width_m
+        self._length = cal.beam_length_m
+        self._circles: SearchCircles = search_circles(
+            cal.to_px, cal.beam_length_m, cal.beam_width_m, measurer.px_m
+        )
+        self._ring_blocks: dict[tuple[int, int], NDArray[np.bool_]] = {}
+        #: The track: how far behind the pivot the previous frame's hub reached (m).
+        self.hub_back_m: float | None = None
+        self.hub_w_m = math.nan
+        self.stats = RegionStats()
+
+    # -- entry point ------------------------------------------------------------------
+    def measure(self, data: bytes) -> FrameMeasurement:
+        """Decode and measure one encoded frame; a frame that does not decode gives
+        ``ok=False`` with the decoder's reason, as a full decode does."""
+        layout = jpeg_layout(data) if self.parts and self.measurer.method == "default" else None
+        if layout is not None:
+            m = self._measure_parts(layout)
+            if m is not None:
+                self.stats.parts += 1
+                self._keep_track(m)
+                return m
+        self.stats.whole += 1
+        try:
+            image = decode(data)
+        except ValueError as exc:
+            self.hub_back_m = None
+            return FrameMeasurement(ok=False, reason=f"cannot decode frame: {exc}")
+        m = self.measurer.measure(image)
+        self._keep_track(m)
+        return m
+
+    # -- the parts --------------------------------------------------------------------
+    def _measure_parts(self, layout: JpegLayout) -> FrameMeasurement | None:
+        shape = (layout.mcu_rows, layout.per_row * layout.interval)
+        ring = self._rings(layout, shape)
+        ring_segs = segments_of_blocks(layout, ring)
+        if ring_segs.size == 0:  # the circles miss the image: the measurement says why
+            return None
+        try:
+            strip = decode_segments(layout, ring_segs)
+        except ValueError:
+            return None
+        # The background's level: the circles' median sample (the beam covers a few % of
+        # them); what is not decoded is that constant.
+        level = int(np.median(strip[::2, ::4]))
+        canvas = blank_canvas(layout, level)
+        paste(layout, canvas, ring_segs, strip)
+        image = image_of(layout, canvas)
+        found = crossings(image, self._circles, self._w)
+        if found is None:
+            return None
+        p1, p2 = found
+        done = np.zeros(shape, dtype=bool)
+        done |= ring
+        want = self._predicted(p1, p2, shape)
+        for attempt in range(2):
+            new = segments_of_blocks(layout, want & ~done)
+            if new.size:
+                try:
+                    paste(layout, canvas, new, decode_segments(layout, new))
+                except ValueError:
+                    return None
+                done |= _segment_blocks(layout, new, shape)
+                self.stats.regrown += attempt
+            m = self.measurer.measure(image_of(layout, canvas))
+            if not m.ok:
+                return None
+            read = self._read(m, p1, p2, shape)
+            if not np.any(read & ~done):
+                total = layout.per_row * layout.mcu_rows
+                self.stats.decoded_fraction.append(
+                    float(segments_of_blocks(layout, done).size) / total
+                )
+                return m
+            # Read beyond what was decoded: decode that, and the band's whole reach
+            # behind the pivot (a hub cut short by what was not decoded reads farther
+            # once it is decoded), and measure again.
+            want = read | self._predicted(p1, p2, shape, behind_m=self._length)
+        return None
+
+    def _keep_track(self, m: FrameMeasurement) -> None:
+        if not m.ok:
+            self.hub_back_m = None
+            return
+        back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]
+        ok = np.all(np.isfinite(back)) and math.isfinite(m.hub_width_m)
+        self.hub_back_m = float(np.hypot(*back)) if ok else None
+        self.hub_w_m = float(m.hub_width_m) if ok else math.nan
+
+    # -- regions ----------------------------------------------------------------------
+    def _rings(self, layout: JpegLayout, shape: tuple[int, int]) -> NDArray[np.bool_]:
+        """The blocks under the search circles (the bilinear samples' four pixels)."""
+        got = self._ring_blocks.get(shape)
+        if got is None:
+            got = np.zeros(shape, dtype=bool)
+            for px in self._circles.px:
+                ok = np.all(np.isfinite(px), axis=1)
+                for dx in (0, 1):
+                    for dy in (0, 1):
+                        bx = np.floor(px[ok, 0]).astype(np.intp) + dx
+                        by = np.floor(px[ok, 1]).astype(np.intp) + dy
+                        inside = (bx >= 0) & (by >= 0) & (bx < layout.width_px)
+                        inside &= by < layout.height_px
+                        got[by[inside] // _BLOCK_PX, bx[inside] // _BLOCK_PX] = True
+            self._ring_blocks[shape] = got
+        return got
+
+    def _predicted(
+        self,
+        p1: NDArray[np.float64],
+        p2: NDArray[np.float64],
+        shape: tuple[int, int],
+        behind_m: float | None = None,
+    ) -> NDArray[np.bool_]:
+        """The blocks the measurement should read, before it: the bands about the chord,
+        widened by the scans' reach; behind the pivot to the previous frame's hub (the
+        track), :data:`_HUB_BACK_M` without one, or ``behind_m``."""
+        w = self._w
+        d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
+        # the bands the check asks for, and two blocks more (the two are rasterised from
+        # different points: their edges differ by a block here and there)
+        half = _PROFILE_HALF_WIDTHS * w + (2 + 2 * _BLOCK_PX) * self.measurer.px_m
+        # outward to a straight beam's tip, two steps and the tip's search beyond
+        out_len = self._length + 0.05 - float(p2 @ d0) + (2 * _STEP_OUT_WIDTHS + 7) * w
+        if behind_m is not None:
+            behind, hub_w = behind_m, 3 * w
+        elif self.hub_back_m is None:
+            behind, hub_w = _HUB_BACK_M, 3 * w
+        else:
+            behind, hub_w = self.hub_back_m + _TRACK_SLACK_M, self.hub_w_m
+        in_len = float(p1 @ d0) + behind + 3 * _STEP_IN_WIDTHS * w
+        # the edge scans about the beam and the hub reach this far from their centre
+        # lines, which leave the chord by up to a few widths (the beam's bending, the
+        # hub's angle to the chord)
+        scans = self._reach_m(w) + _OFF_CHORD_WIDTHS * w
+        half_out = max(half, 0.75 * w + scans)
+        half_in = max(half, 0.75 * hub_w + scans)
+        return self._tubes(
+            shape,
+            [
+                (np.array([p2, p2 + out_len * d0]), half_out),
+                (np.array([p1, p1 - in_len * d0]), half_in),
+            ],
+        )
+
+    def _read(
+        self,
+        m: FrameMeasurement,
+        p1: NDArray[np.float64],
+        p2: NDArray[np.float64],
+        shape: tuple[int, int],
+    ) -> NDArray[np.bool_]:
+        """The blocks a measurement read, from its result: the rough location's bands
+        (outward past the tip, inward past the hub's back end: two steps beyond where
+        each strip ended), the edge scans about the beam's and the hub's centre lines,
+        the clamp's and the back face's searches (a hub width either side of each) and
+        the tip's (its end face, up to four beam widths on)."""
+        cal = self.measurer.calibration
+        w = self._w
+        reach = self._reach_m(w)
+        d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
+        back, clamp = cal.to_plane(m.hub_line_px)
+        tip = m.tip_plane_m
+        line = m.centreline_plane_m
+        hub_w = m.hub_width_m if math.isfinite(m.hub_width_m) else 3 * w
+        half = _PROFILE_HALF_WIDTHS * w + 2 * self.measurer.px_m
+        out_end = float((tip - p2) @ d0) + 2 * _STEP_OUT_WIDTHS * w + 4 * w
+        in_end = float((p1 - back) @ d0) + 2 * _STEP_IN_WIDTHS * w
+        tubes = [
+            (np.array([p2, p2 + max(out_end, 0.0) * d0]), half),
+            (np.array([p1, p1 - max(in_end, 0.0) * d0]), half),
+        ]
+        beam_r = 0.75 * w + reach
+        if math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px:
+            # smeared: centroid cuts reach 1.5 smears + half a width + 3 px either side
+            beam_r += 1.5 * self.measurer.max_smear_px * self.measurer.px_m * 1.5
+        tubes.append((line, beam_r))
+        # the tip's searches: single lines along the tangent, up to 4 widths on
+        pad = 6 * self.measurer.px_m
+        tubes.append((np.vstack([tip, tip + 4.5 * w * _unit(tip - line[-2])]), 0.5 * w + pad))
+        e = _unit(clamp - back)
+        hub_line = np.array([back - 0.5 * hub_w * e, clamp + 0.5 * hub_w * e])
+        tubes.append((hub_line, 0.75 * hub_w + reach))
+        faces = np.array([back - hub_w * e, clamp + hub_w * e])
+        tubes.append((faces, 0.5 * hub_w + pad))
+        return self._tubes(shape, tubes)
+
+    def _reach_m(self, w: float) -> float:
+        # px beyond the strip, in the plane, with room for perspective (1.5x the pivot's
+        # pixel size) and a pixel of bilinear reach
+        return (_SCAN_REACH_PX + 2.0) * self.measurer.px_m * 1.5
+
+    def _tubes(
+        self, shape: tuple[int, int], tubes: list[tuple[NDArray[np.float64], float]]
+    ) -> NDArray[np.bool_]:
+        """The blocks within ``half_m`` (plane) of polylines ``(line (K, 2) plane m,
+        half_m)``, each line's ends extended by its ``half_m``, and a block more all
+        round; everything when a line reaches behind the camera."""
+        dense, halves = [], []
+        for line_m, half_m in tubes:
+            line = np.asarray(line_m, dtype=np.float64)
+            line = line[np.all(np.isfinite(line), axis=1)]
+            if len(line) < 2:
+                continue
+            # dense along the line: straight in the plane is curved in the image
+            s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))))
+            if s[-1] <= 0:
+                continue
+            sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
+            pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
+            t = np.gradient(pts, axis=0)
+            t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
+            pts[0] -= half_m * t[0]
+            pts[-1] += half_m * t[-1]
+            nrm = np.column_stack([-t[:, 1], t[:, 0]])
+            dense.append(np.vstack([pts, pts + half_m * nrm, pts - half_m * nrm]))
+            halves.append(len(pts))
+        mask = np.zeros(shape, dtype=np.uint8)
+        if not dense:
+            return mask.astype(bool)
+        px_all = self.measurer.calibration.to_px(np.vstack(dense))
+        if not np.all(np.isfinite(px_all)):
+            return np.ones(shape, dtype=bool)
+        i = 0
+        for k in halves:
+            centre, side_a, side_b = (
+                px_all[i : i + k],
+                px_all[i + k : i + 2 * k],
+                px_all[i + 2 * k : i + 3 * k],
+            )
+            i += 3 * k
+            half_px = float(
+                max(np.hypot(*(side_a - centre).T).max(), np.hypot(*(side_b - centre).T).max())
+            )
+            # a thick polyline (round ends and joins) in blocks, a block of slack all round
+            thick = min(2 * math.ceil(half_px / _BLOCK_PX) + 3, 32767)
+            blk = np.clip(centre / _BLOCK_PX * 16.0, -(2**27), 2**27).round().astype(np.int32)
+            cv2.polylines(mask, [blk.reshape(-1, 1, 2)], False, 1, thickness=thick, shift=4)
+        return mask.astype(bool)
+
+
+def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    n = float(np.hypot(v[0], v[1]))
+    return v / n if n > 0 else np.array([1.0, 0.0])
+
+
+def _segment_blocks(
+    layout: JpegLayout, segments: NDArray[np.intp], shape: tuple[int, int]
+) -> NDArray[np.bool_]:
+    """The blocks of the given segments."""
+    hit = np.zeros(layout.mcu_rows * layout.per_row, dtype=bool)
+    hit[segments] = True
+    return np.repeat(hit.reshape(layout.mcu_rows, layout.per_row), layout.interval, axis=1)
