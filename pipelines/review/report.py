@@ -329,7 +329,8 @@ def _model_error_lines(a: Mapping[str, object], errors: Mapping[str, Any]) -> li
     # the simulation's error taken out in quadrature (its estimate is a bound on the max)
     without = math.sqrt(max(rms**2 - est**2, 0.0)) if math.isfinite(est) else math.nan
     drive = v("sim_drive_tip_uncertainty_m")
-    parts = [x for x in (sd, est, drive) if math.isfinite(x)]
+    cal = v("calibration_tip_lateral_sd_m")
+    parts = [x for x in (sd, est, drive, cal) if math.isfinite(x)]
     expected = math.sqrt(sum(x * x for x in parts)) if parts else math.nan
     return [
         "## Image against simulation, and the simulation's own error",
@@ -347,13 +348,14 @@ def _model_error_lines(a: Mapping[str, object], errors: Mapping[str, Any]) -> li
         f"| simulation's uncertainty from the measured hub angle (fitted drive), RMS | "
         f"{format_value(drive, 1e3)} |",
         f"| image's stated uncertainty, RMS over the frames | {format_value(sd, 1e3)} |",
-        f"| expected image - sim RMS from these three alone | {format_value(expected, 1e3)} |",
         f"| the calibration's stated uncertainty at the tip, RMS over the frames | "
-        f"{format_value(v('calibration_tip_lateral_sd_m'), 1e3)} |",
+        f"{format_value(cal, 1e3)} |",
+        f"| expected image - sim RMS from these four alone | {format_value(expected, 1e3)} |",
         "",
         "The image's stated uncertainty here is its edge fits' noise; the calibration's, "
         "one error common to every frame, is stated apart (the frames' `tip_lateral_sd` "
-        "holds both in quadrature). The model's estimate is its numerical error; the "
+        "holds both in quadrature; being one draw for the whole run, it does not average "
+        "out over the frames). The model's estimate is its numerical error; the "
         "drive's is the potentiometer's noise left in the fitted hub angle (`sim_drive`), "
         "carried through the linear beam.",
         "",

@@ -113,6 +113,7 @@ def test_report_puts_the_simulation_error_beside_the_image_comparison(tmp_path: 
         sim_tip_error_estimate_m=est_m,
         sim_resimulated=1,
         sim_drive_tip_uncertainty_m=0.12e-3,
+        calibration_tip_lateral_sd_m=0.2e-3,
     )
     md = write_report(ds, tmp_path / "new", title="new").read_text("utf-8")
     rows = {}
@@ -126,8 +127,9 @@ def test_report_puts_the_simulation_error_beside_the_image_comparison(tmp_path: 
     assert float(rows["image - sim, RMS, the simulation's error taken out"]) == pytest.approx(
         1e3 * np.sqrt(rms_m**2 - est_m**2), rel=5e-4
     )
-    assert float(rows["expected image - sim RMS from these three alone"]) == pytest.approx(
-        0.5142, abs=1e-4
+    # sqrt(0.4^2 + 0.3^2 + 0.12^2 + 0.2^2) mm: noise, model, drive and calibration
+    assert float(rows["expected image - sim RMS from these four alone"]) == pytest.approx(
+        0.5517, abs=1e-4
     )
     assert (
         float(rows["simulation's uncertainty from the measured hub angle (fitted drive), RMS"])
