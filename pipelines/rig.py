@@ -86,6 +86,10 @@ class SyntheticConfig:
     # The synthetic camera stamps each frame this long after its mid-exposure (a camera
     # that stamps on arrival); processing must find it in the camera-to-DAQ offset.
     stamp_latency_s: float = 0.0
+    # The hub the synthetic camera draws, m; 0: the rig's [hub] (the shipped rig draws a
+    # 200 x 40 mm bar, a bench other than the paper's 68 x 51 mm block on purpose).
+    drawn_hub_length_m: float = 0.2
+    drawn_hub_width_m: float = 0.04
 
     def __post_init__(self) -> None:
         for name in (
@@ -102,6 +106,16 @@ class SyntheticConfig:
             limit, unit, why = SYNTHETIC_LIMITS[name]
             if v > limit:
                 raise ValueError(f"{name} must be at most {limit:g} {unit} ({why}), got {v!r}")
+        for name, limit in (
+            ("drawn_hub_length_m", MAX_HUB_LENGTH_M),
+            ("drawn_hub_width_m", MAX_HUB_WIDTH_M),
+        ):
+            v = getattr(self, name)
+            if not math.isfinite(v) or not 0.0 <= v <= limit:
+                raise ValueError(
+                    f"{name} must be 0 (draw [hub]) or a length of at most {limit:g} m, "
+                    f"got {v!r}"
+                )
         if not math.isfinite(self.clock_drift_ppm) or abs(self.clock_drift_ppm) > 1000.0:
             raise ValueError(
                 f"clock_drift_ppm must be within +/-1000, got {self.clock_drift_ppm!r}"
@@ -158,8 +172,9 @@ class HubConfig:
     """The hub: the block the beam is clamped in (the paper's is about 68 mm long and
     51 mm wide). Hints for the image measurement only: it finds the hub in each frame
     (its edges when long, always the beam's root) and the processing compares what it
-    found with these. The built-in synthetic bench draws this hub. The pivot-to-clamp
-    offset is ``[beam] hub_offset_m``."""
+    found with these. The built-in synthetic bench draws this hub when ``[synthetic]``
+    ``drawn_hub_length_m`` and ``drawn_hub_width_m`` are 0 (the shipped rig draws a 200 x
+    40 mm bar). The pivot-to-clamp offset is ``[beam] hub_offset_m``."""
 
     length_m: float = 0.068
     width_m: float = 0.051

@@ -9,8 +9,9 @@ capture sees the steady state.
 ``rig.synthetic.scene = "free_decay"`` holds the hub still instead and releases the tip
 from a static deflection (the paper's damping runs, §5.2.1).
 
-The camera draws the bench the rig describes: the hub of ``[hub]`` (length, width) with
-its clamp ``[beam] hub_offset_m`` from the pivot, the beam of ``[beam]``, the brightness,
+The camera draws the bench the rig describes: the hub of ``[synthetic]`` ``drawn_hub_length_m``
+and ``drawn_hub_width_m`` (the shipped rig's: a 200 x 40 mm bar), or of ``[hub]`` when those are
+0, with its clamp ``[beam] hub_offset_m`` from the pivot, the beam of ``[beam]``, the brightness,
 contrast and lighting of ``[synthetic]`` (``background_dn``, ``beam_dn``,
 ``lighting_gradient``), motion-blurred over ``[camera] exposure_s``: a frame is the
 average of the beam's simulated poses over its exposure, at most a pixel of tip travel
@@ -134,8 +135,8 @@ class SyntheticBench:
             beam_length_m=rig.beam.length_m,
             beam_width_m=rig.beam.width_m,
             hub_offset_m=rig.beam.hub_offset_m,
-            hub_length_m=rig.hub.length_m,
-            hub_width_m=rig.hub.width_m,
+            hub_length_m=rig.synthetic.drawn_hub_length_m or rig.hub.length_m,
+            hub_width_m=rig.synthetic.drawn_hub_width_m or rig.hub.width_m,
             noise_dn=rig.synthetic.image_noise_dn,
             seed=self.seed,
             background_dn=rig.synthetic.background_dn,

@@ -114,6 +114,8 @@ def test_every_list_refuses_a_bad_item(section: str, key: str, bad: object) -> N
         ("synthetic", "background_dn", 300.0, "within 0..255 DN"),
         ("synthetic", "lighting_gradient", -1.5, "within +/-1"),
         ("synthetic", "stamp_latency_s", 0.6, "at most 0.25 s"),
+        ("synthetic", "drawn_hub_length_m", 2.0, "0 (draw [hub]) or a length of at most 1 m"),
+        ("synthetic", "drawn_hub_width_m", -0.04, "0 (draw [hub]) or a length of at most 0.3 m"),
         ("registration", "center_m", [5.0, 5.0], "not wholly in the camera's view"),
         ("camera_pose", "target_m", [3.0, 0.0], "not wholly in the camera's view"),
         ("beam", "youngs_modulus_pa", 1.0, "rubber to diamond"),

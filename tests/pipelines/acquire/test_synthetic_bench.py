@@ -54,6 +54,8 @@ def other_rig() -> Rig:
             beam_dn=BEAM_DN,
             lighting_gradient=LIGHTING_GRADIENT,
             stamp_latency_s=STAMP_LATENCY_S,
+            drawn_hub_length_m=0.0,  # draw [hub]'s block, not the shipped rig's bar
+            drawn_hub_width_m=0.0,
         ),
     )
 
@@ -77,7 +79,8 @@ def test_the_scene_is_the_rigs() -> None:
     assert default_scene.hub_dn == 190.0  # the default bench's picture is unchanged
     assert (default_scene.background_dn, default_scene.beam_dn) == (40.0, 215.0)
     assert default_scene.lighting_gradient == 0.0
-    assert (default_scene.hub_length_m, default_scene.hub_width_m) == (0.068, 0.051)
+    # the shipped rig's bench draws its own 200 x 40 mm bar, not [hub]'s paper block
+    assert (default_scene.hub_length_m, default_scene.hub_width_m) == (0.2, 0.04)
     # motion blur: poses sampled at most a pixel of tip travel apart over the exposure
     default = SyntheticBench(dataclasses.replace(rig, camera=load_rig().camera), 0.5)
     assert bench.blur_samples >= 4 * default.blur_samples - 1 and bench.blur_samples > 4
