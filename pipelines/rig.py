@@ -113,8 +113,7 @@ class SyntheticConfig:
             v = getattr(self, name)
             if not math.isfinite(v) or not 0.0 <= v <= limit:
                 raise ValueError(
-                    f"{name} must be 0 (draw [hub]) or a length of at most {limit:g} m, "
-                    f"got {v!r}"
+                    f"{name} must be 0 (draw [hub]) or a length of at most {limit:g} m, got {v!r}"
                 )
         if not math.isfinite(self.clock_drift_ppm) or abs(self.clock_drift_ppm) > 1000.0:
             raise ValueError(
