@@ -249,7 +249,8 @@ class LogWriter:
         return False
 
     def flush(self) -> None:
-        """End the chunk in progress, write it and its indexes, and fsync the file."""
+        """End the chunk in progress, hand it and its indexes to the operating system
+        (what a killed process keeps), and fsync if a second has passed since the last."""
         self._check_open()
         self._write_frame_chunk()
         self._end_chunk()
