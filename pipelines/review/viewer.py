@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 import xarray as xr
 from numpy.typing import ArrayLike, NDArray
@@ -181,6 +182,35 @@ def _overlay_shapes(o: FrameOverlay) -> dict[str, FloatArray | None]:
             raise ValueError(f"overlays.tip_px must have shape (2,), got {tip.shape}")
         out["tip"] = tip[None, :]
     return out
+
+
+def _offsets(lengths: list[int]) -> pa.Array:
+    out = np.zeros(len(lengths) + 1, np.int32)
+    out[1:] = np.cumsum(lengths)
+    return pa.array(out)
+
+
+def _blob_array(data: Sequence[bytes | bytearray | memoryview]) -> pa.Array:
+    """Rerun's Blob column of ``data``, built in one piece: Rerun's own conversion of a list
+    of blobs makes an arrow array per blob and joins them, 15x slower for a few hundred
+    JPEGs (the same array: tested through what the recording holds)."""
+    inner = pa.array(np.frombuffer(b"".join(data), np.uint8))
+    return pa.ListArray.from_arrays(
+        _offsets([len(d) for d in data]), inner, type=pa.list_(pa.field("item", pa.uint8(), False))
+    )
+
+
+def _strips_array(strips: list[FloatArray]) -> pa.Array:
+    """Rerun's LineStrip2D column (one strip per row) of ``strips`` (K_i, 2), in one piece
+    (Rerun converts them strip by strip)."""
+    flat = np.concatenate(strips).astype(np.float32).ravel()
+    points = pa.FixedSizeListArray.from_arrays(
+        pa.array(flat), type=pa.list_(pa.field("item", pa.float32(), False), 2)
+    )
+    point = pa.field("item", points.type, False)
+    return pa.ListArray.from_arrays(
+        _offsets([len(x) for x in strips]), points, type=pa.list_(point)
+    )
 
 
 def _series(name: str, value: ArrayLike, n: int | None = None) -> FloatArray:
@@ -445,7 +475,7 @@ class RunViewer:
         send(
             "/camera/image",
             list(range(n)),
-            rr.EncodedImage.columns(blob=[bytes(d) for d in data], media_type=media),
+            rr.EncodedImage.columns(blob=_blob_array(data), media_type=media),
         )
         if overlays is None:
             return
@@ -470,7 +500,7 @@ class RunViewer:
             style = {"colors": [colour] * k, "radii": [radius] * k, "draw_order": [order] * k}
             columns: list[Any]
             if name in _OVERLAY_LINES:
-                columns = list(rr.LineStrips2D.columns(strips=values, **style))
+                columns = list(rr.LineStrips2D.columns(strips=_strips_array(values), **style))
             else:
                 lengths = [len(v) for v in values]
                 columns = [
