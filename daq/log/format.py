@@ -310,6 +310,39 @@ def encode_image(t_ns: int, data: bytes, encoding: str) -> bytes:
     return msg.SerializeToString()
 
 
+def encode_image_parts(t_ns: int, data: bytes, encoding: str) -> tuple[bytes, bytes, bytes]:
+    """``encode_image``'s bytes as (before the image, the image itself, after it), so a
+    writer can pass the image on without copying it, encoded by hand (building protobuf
+    messages for each frame cost more than the rest of its way to the file). Protobuf
+    writes known fields in field-number order (timestamp 1, data 2, format 3, frame_id
+    4) and leaves out proto3 defaults, so the three joined are ``encode_image``'s output
+    byte for byte (a test checks it)."""
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    stamp = (b"\x08" + _varint(sec) if sec else b"") + (b"\x10" + _varint(nsec) if nsec else b"")
+    head = b"\x0a" + _varint(len(stamp)) + stamp
+    if data:
+        head += b"\x12" + _varint(len(data))
+    fmt = encoding.encode()
+    tail = (b"\x1a" + _varint(len(fmt)) + fmt if fmt else b"") + _FRAME_ID_FIELD
+    return head, data, tail
+
+
+_FRAME_ID_FIELD = b"\x22" + bytes([len(CAMERA_FRAME_ID)]) + CAMERA_FRAME_ID.encode()
+
+
+def _varint(n: int) -> bytes:
+    """Protobuf's base-128 varint of a non-negative int (times before 1970 never occur:
+    log times are unsigned)."""
+    if n < 0x80:
+        return bytes((n,))
+    out = bytearray()
+    while n >= 0x80:
+        out.append((n & 0x7F) | 0x80)
+        n >>= 7
+    out.append(n)
+    return bytes(out)
+
+
 def decode_image(data: bytes) -> tuple[int, bytes, str, int, int]:
     """(t_ns, image bytes, "jpeg" | "png", width_px, height_px) of one
     ``foxglove.CompressedImage``, checked: a protobuf that parses, a JPEG or PNG payload

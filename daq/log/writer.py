@@ -1,14 +1,19 @@
 """Writing a run log: a chunked, compressed MCAP file that is safe to kill.
 
-Every ``flush_interval_s`` (at most 1 s) the writer ends the chunk in progress, writes
-it with its message indexes and fsyncs, so ``recover_log`` can restore every message
-written before the last flush if the process dies.
+Every ``flush_interval_s`` (at most 1 s) the writer ends the chunk in progress and hands
+it with its message indexes to the operating system, so ``recover_log`` can restore every
+message written before the last flush if the process dies; it fsyncs at least once a
+second (at the flush that ends a second since the last fsync), so a crash of the machine
+itself loses at most about a second. A killed process loses nothing the kernel has: at
+the rig's 0.1 s flush an fsync at every flush cost a tenth of the capture's CPU and
+bought nothing against a kill (issue #19).
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import time
 from pathlib import Path
@@ -18,7 +23,6 @@ from typing import Any
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.Log_pb2 import Log
-from mcap.writer import CompressionType, Writer
 
 from daq.errors import DaqInputError
 from daq.log.format import (
@@ -33,25 +37,25 @@ from daq.log.format import (
     check_camera_info,
     encode_camera_info,
     encode_event,
-    encode_image,
+    encode_image_parts,
     encode_metadata,
     encode_samples,
     protobuf_schema,
     software_version,
     utc_zero_ns,
 )
+from daq.log.mcap_out import ChunkBuffer, McapOut
 from daq.records import Event, Frame, SampleBlock
 
 log = logging.getLogger(__name__)
 
-_U32 = 0xFFFFFFFF
 # Chunks end at each flush (about once a second) or at this size, whichever comes first.
 _CHUNK_SIZE = 8 * 1024 * 1024
 # Frames are kept out of the chunks that hold samples and events (up to this many frames
 # per chunk), so reading samples never decompresses images.
 _FRAMES_PER_CHUNK = 8
-# mcap's Writer keeps its chunk compression in this (name-mangled) attribute
-_COMPRESSION_ATTR = "_Writer__compression"
+# Longest time between fsyncs (design.md: the writer flushes at least once a second).
+_SYNC_INTERVAL_S = 1.0
 
 
 class LogWriter:
@@ -97,7 +101,7 @@ class LogWriter:
         if not isinstance(run_info, dict):
             raise TypeError(f"run_info must be a dict, got {type(run_info).__name__}")
         cam = check_camera_info(camera_info) if camera_info is not None else None
-        modes = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": None}
+        modes = {"zstd": "zstd", "lz4": "lz4", "none": ""}
         if compression not in modes:
             raise DaqInputError(f"compression must be one of {sorted(modes)}, got {compression!r}")
         self.path = Path(path)
@@ -108,25 +112,26 @@ class LogWriter:
         self.counts = {TOPIC_SAMPLES: 0, TOPIC_IMAGE: 0, TOPIC_CAMERA_INFO: 0, TOPIC_EVENTS: 0}
         self.flush_count = 0
         self.bytes_at_last_flush = 0
+        self.sync_count = 0
+        self._last_sync = -math.inf
         self.last_flushed_log_time_ns: int | None = None
         self._max_log_time_ns: int | None = None
         self._event_sequence = 0
+        self._compression = modes[compression]
+        # samples and events go to one chunk, frames (held) to chunks of their own
+        self._chunk = ChunkBuffer()
         self._frames: list[Frame] = []
         try:
-            mode = modes[compression]
-            self._mcap = Writer(
-                self._file,
-                chunk_size=_CHUNK_SIZE,
-                compression=mode if mode is not None else CompressionType.NONE,
-                enable_data_crcs=True,  # the metadata records have no other check
+            # the data section's CRC is always written: the metadata has no other check
+            self._mcap = McapOut(
+                self._file, profile=PROFILE, library=f"beambench {software_version()}"
             )
-            self._mcap.start(profile=PROFILE, library=f"beambench {software_version()}")
             self._channels = self._register_channels()
             meta_rig = {"json": rig_json, **{k: json.dumps(v) for k, v in rig.items()}}
-            self._mcap.add_metadata("rig", meta_rig)
+            self._mcap.metadata("rig", meta_rig)
             run = {"log_format_version": FORMAT_VERSION, **run_info}
             self._utc_zero_ns = utc_zero_ns(run_info)
-            self._mcap.add_metadata("run", encode_metadata(run))
+            self._mcap.metadata("run", encode_metadata(run))
             if cam is not None:
                 self._add(TOPIC_CAMERA_INFO, 0, encode_camera_info(cam), 0)
             self.flush()
@@ -137,26 +142,20 @@ class LogWriter:
 
     def _register_channels(self) -> dict[str, int]:
         ids = {}
-        sid = self._mcap.register_schema(SAMPLE_SCHEMA_NAME, "jsonschema", SAMPLE_SCHEMA_BYTES)
-        ids[TOPIC_SAMPLES] = self._mcap.register_channel(TOPIC_SAMPLES, "json", sid)
+        sid = self._mcap.schema(SAMPLE_SCHEMA_NAME, "jsonschema", SAMPLE_SCHEMA_BYTES)
+        ids[TOPIC_SAMPLES] = self._mcap.channel(TOPIC_SAMPLES, "json", sid)
         for topic, cls in (
             (TOPIC_IMAGE, CompressedImage),
             (TOPIC_CAMERA_INFO, CameraCalibration),
             (TOPIC_EVENTS, Log),
         ):
             name, data = protobuf_schema(cls)
-            sid = self._mcap.register_schema(name, "protobuf", data)
-            ids[topic] = self._mcap.register_channel(topic, "protobuf", sid)
+            sid = self._mcap.schema(name, "protobuf", data)
+            ids[topic] = self._mcap.channel(topic, "protobuf", sid)
         return ids
 
     def _add(self, topic: str, t_ns: int, data: bytes, sequence: int) -> None:
-        self._mcap.add_message(
-            channel_id=self._channels[topic],
-            log_time=t_ns,
-            data=data,
-            publish_time=time.time_ns(),
-            sequence=sequence & _U32,
-        )
+        self._chunk.add(self._channels[topic], sequence, t_ns, time.time_ns(), (data,))
         self.counts[topic] += 1
         if self._max_log_time_ns is None or t_ns > self._max_log_time_ns:
             self._max_log_time_ns = t_ns
@@ -177,18 +176,15 @@ class LogWriter:
         messages = encode_samples(
             block.t_ns, block.rocker_angle_rad, block.strain, block.raw_volts, self._utc_zero_ns
         )
-        channel = self._channels[TOPIC_SAMPLES]
-        now = time.time_ns()
-        add = self._mcap.add_message
-        seq0 = block.first_sequence
-        for i, (t, data) in enumerate(zip(block.t_ns.tolist(), messages, strict=True)):
-            add(
-                channel_id=channel,
-                log_time=t,
-                data=data,
-                publish_time=now,
-                sequence=(seq0 + i) & _U32,
-            )
+        self._chunk.add_many(
+            self._channels[TOPIC_SAMPLES],
+            block.first_sequence,
+            block.t_ns.tolist(),
+            time.time_ns(),
+            messages,
+        )
+        if self._chunk.size >= _CHUNK_SIZE:
+            self._end_chunk()
         self.counts[TOPIC_SAMPLES] += len(block)
         last = int(block.t_ns[-1])
         if self._max_log_time_ns is None or last > self._max_log_time_ns:
@@ -207,30 +203,32 @@ class LogWriter:
             self._write_frame_chunk()
         self.maybe_flush()
 
+    def _end_chunk(self) -> None:
+        """Write the chunk of samples and events, with the log's compression."""
+        self._mcap.write_chunk(self._chunk, self._compression)
+        self._chunk = ChunkBuffer()
+
     def _write_frame_chunk(self) -> None:
-        """End the chunk of samples and events, then write the held frames as a chunk."""
+        """End the chunk of samples and events, then write the held frames as a chunk.
+
+        JPEG and PNG are compressed already: zstd gains ~2.5 % of their size and cost 0.6 %
+        of a core at 15 frames/s, so the frame chunks are written uncompressed (MCAP's
+        chunk records name their compression one by one; every reader handles ""), and
+        the images go to the file without a copy."""
         if not self._frames:
             return
-        self._mcap.flush()
+        self._end_chunk()
+        chunk = ChunkBuffer()
+        channel = self._channels[TOPIC_IMAGE]
+        now = time.time_ns()
         for frame in self._frames:
-            data = encode_image(frame.t_ns, frame.data, frame.encoding)
-            self._add(TOPIC_IMAGE, frame.t_ns, data, frame.sequence)
+            parts = encode_image_parts(frame.t_ns, frame.data, frame.encoding)
+            chunk.add(channel, frame.sequence, frame.t_ns, now, parts)
+            self.counts[TOPIC_IMAGE] += 1
+            if self._max_log_time_ns is None or frame.t_ns > self._max_log_time_ns:
+                self._max_log_time_ns = frame.t_ns
         self._frames.clear()
-        if _COMPRESSION_ATTR in vars(self._mcap):
-            # JPEG and PNG are compressed already: zstd gains ~2.5 % of their size and cost
-            # 0.6 % of a core at 15 frames/s (a tenth of the capture's CPU), so the frame
-            # chunks are written uncompressed (MCAP's chunk records name their compression
-            # one by one; every reader handles ""). The mcap writer takes one compression
-            # for all chunks, hence its attribute is switched around this chunk; should a
-            # later mcap rename it, frames are compressed like the rest (slower, not wrong).
-            saved = vars(self._mcap)[_COMPRESSION_ATTR]
-            setattr(self._mcap, _COMPRESSION_ATTR, CompressionType.NONE)
-            try:
-                self._mcap.flush()
-            finally:
-                setattr(self._mcap, _COMPRESSION_ATTR, saved)
-        else:
-            self._mcap.flush()
+        self._mcap.write_chunk(chunk, "")
 
     def write_event(self, event: Event) -> None:
         """One ``/events`` message (``foxglove.Log``); also logged with ``logging``."""
@@ -251,12 +249,20 @@ class LogWriter:
         return False
 
     def flush(self) -> None:
-        """End the chunk in progress, write it and its indexes, and fsync the file."""
+        """End the chunk in progress, hand it and its indexes to the operating system
+        (what a killed process keeps), and fsync if a second has passed since the last."""
         self._check_open()
         self._write_frame_chunk()
-        self._mcap.flush()
-        os.fsync(self._file.fileno())
-        self._last_flush = time.monotonic()
+        self._end_chunk()
+        self._file.flush()
+        now = time.monotonic()
+        # fsync once a second: flushes come every flush_interval_s, so waiting for the
+        # one at least a second less an interval after the last keeps the gap <= 1 s
+        if now - self._last_sync >= _SYNC_INTERVAL_S - self.flush_interval_s:
+            os.fsync(self._file.fileno())
+            self._last_sync = now
+            self.sync_count += 1
+        self._last_flush = now
         self.flush_count += 1
         self.bytes_at_last_flush = self._file.tell()
         self.last_flushed_log_time_ns = self._max_log_time_ns
@@ -269,6 +275,7 @@ class LogWriter:
         self._closed = True
         try:
             self._write_frame_chunk()
+            self._end_chunk()
             self._mcap.finish()
             self._file.flush()
             os.fsync(self._file.fileno())

@@ -100,55 +100,72 @@ def run(args: argparse.Namespace) -> int:
     rig = load_rig(args.rig) if args.rig else None
     cal = Path(args.calibration) if args.calibration else None
     from pipelines.process.run import MAX_TIP_UNCERTAINTY_M
+    from pipelines.review.overlays import FramePreviews
 
-    processed = process_run(
-        log_path,
-        rig=rig,
-        calibration_path=cal,
-        model=args.model,
-        sim_tol=args.sim_tol,
-        workers=args.workers,
-        damping_law=args.damping_law,
-        max_tip_uncertainty_m=MAX_TIP_UNCERTAINTY_M if limit_m is None else limit_m,
-        fit_damping=args.fit_damping,
-    )
+    wanted = bool(args.rrd or args.spawn or args.connect)
+    # the recording's reduced frames are made in a thread while the frames are measured
+    previews = FramePreviews(log_path, args.frame_reduction) if wanted else None
+    if previews is not None and previews.reduction > 1:
+        previews.start()
     try:
-        write_processed(processed, out)
-    except OSError as exc:
-        raise write_failed(out, exc) from None
-    failures = processed.failures
-    if failures.total and not failures.measured:
-        raise BeambenchError(
-            f"{log_path}: none of the {failures.total} frames was measured; "
-            f"{failures.advice()}. The DAQ-only results (strains, potentiometer, simulation) "
-            f"were written to {out}"
+        processed = process_run(
+            log_path,
+            rig=rig,
+            calibration_path=cal,
+            model=args.model,
+            sim_tol=args.sim_tol,
+            workers=args.workers,
+            damping_law=args.damping_law,
+            max_tip_uncertainty_m=MAX_TIP_UNCERTAINTY_M if limit_m is None else limit_m,
+            fit_damping=args.fit_damping,
         )
-    if args.rrd or args.spawn or args.connect:
         try:
-            stream_to_viewer(processed, log_path, args)
-        except (OSError, RuntimeError) as exc:  # rerun's file writer raises RuntimeError
-            raise write_failed(args.rrd or "the Rerun viewer", exc) from None
+            write_processed(processed, out)
+        except OSError as exc:
+            raise write_failed(out, exc) from None
+        failures = processed.failures
+        if failures.total and not failures.measured:
+            raise BeambenchError(
+                f"{log_path}: none of the {failures.total} frames was measured; "
+                f"{failures.advice()}. The DAQ-only results (strains, potentiometer, "
+                f"simulation) were written to {out}"
+            )
+        if wanted:
+            try:
+                stream_to_viewer(processed, log_path, args, previews)
+            except (OSError, RuntimeError) as exc:  # rerun's file writer raises RuntimeError
+                raise write_failed(args.rrd or "the Rerun viewer", exc) from None
+    finally:
+        if previews is not None:
+            previews.stop()
     print_summary(processed, out)
     return 0
 
 
-def stream_to_viewer(processed: object, log_path: Path, args: argparse.Namespace) -> None:
+def stream_to_viewer(
+    processed: object, log_path: Path, args: argparse.Namespace, previews: object = None
+) -> None:
     import time
 
     from pipelines.process.run import Processed
-    from pipelines.review.overlays import stream_processed
+    from pipelines.review.overlays import FramePreviews, stream_processed
     from pipelines.review.viewer import open_viewer
 
     assert isinstance(processed, Processed)
+    assert previews is None or isinstance(previews, FramePreviews)
     t0 = time.perf_counter()
     try:
         viewer = open_viewer(
             "beambench", rrd_path=args.rrd, spawn=args.spawn, connect_url=args.connect
         )
     except ValueError as exc:
+        if previews is not None:
+            previews.stop()
         raise BeambenchError(str(exc)) from None
     try:
-        stream_processed(processed, log_path, viewer, frame_reduction=args.frame_reduction)
+        stream_processed(
+            processed, log_path, viewer, frame_reduction=args.frame_reduction, previews=previews
+        )
         viewer.close()
     except BaseException:
         viewer.abort()

@@ -6,6 +6,8 @@ hands them to ``pipelines.review.viewer.RunViewer`` — the only module that tal
 
 from __future__ import annotations
 
+import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -13,11 +15,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
-from daq.log import iter_frames
+from daq.log import LogError, iter_frames
 from pipelines.process.run import Processed
 from pipelines.review.display import DIFFERENCE_GAIN
 from pipelines.review.viewer import FrameOverlay, RunViewer
-from vision import FrameMeasurement
+from vision import FrameMeasurement, VisionError
 from vision.codec import preview
 
 FloatArray = NDArray[np.float64]
@@ -119,13 +121,84 @@ def displayed_frame(data: bytes, encoding: str, reduction: int) -> tuple[bytes, 
     return preview(data, reduction), "jpeg", 1.0 / reduction
 
 
+# Previews made ahead are kept in memory up to this many bytes (a bench minute at 1/2 size
+# is about 90 MB); the frames past it are reduced while the recording is written.
+PREVIEW_BUDGET_BYTES = 256 * 1024 * 1024
+# frames sent to Rerun per call: 16 frames at 1/2 size are a chunk of about Rerun's own
+# chunk size (1 MiB); a few hundred per chunk made the recording's close wait several
+# times longer, one per call spent more CPU in Python (900 frames under load: 1.5-2.0 s
+# CPU at 16 per call, 2.4 s one by one, 3.0 s at 256)
+_FRAMES_PER_BATCH = 16
+
+
+class FramePreviews:
+    """The log's frames as the recording shows them (:func:`displayed_frame`), made in a
+    thread while the frames are measured, so the ``.rrd`` step after them only logs.
+
+    Start it before ``process_run``; :func:`stream_processed` takes what it made (a
+    preview is a reduced decode and a JPEG encode, both outside the GIL). Up to
+    :data:`PREVIEW_BUDGET_BYTES` are kept; a failure (a frame that does not decode) is
+    not raised here: that frame is reduced again, and fails, where it always did.
+    """
+
+    def __init__(self, log_path: Path, reduction: int) -> None:
+        self.log_path = Path(log_path)
+        self.reduction = int(reduction)
+        self._made: dict[int, tuple[bytes, str, float]] = {}
+        self.wall_s = 0.0  # how long the thread took
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="frame-previews", daemon=True)
+
+    def start(self) -> FramePreviews:
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        t0 = time.perf_counter()
+        try:
+            self._make()
+        finally:
+            self.wall_s = time.perf_counter() - t0
+
+    def _make(self) -> None:
+        size = 0
+        try:
+            for frame in iter_frames(self.log_path):
+                if self._stop.is_set() or size > PREVIEW_BUDGET_BYTES:
+                    return
+                shown = displayed_frame(frame.data, frame.encoding, self.reduction)
+                self._made[frame.sequence] = shown
+                size += len(shown[0])
+        except (VisionError, LogError, OSError, ValueError):
+            return  # the frames left are reduced in stream_processed, which reports it
+
+    def stop(self) -> None:
+        """Stop making previews (the run failed, or they were used); safe to repeat."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+
+    def take(self) -> dict[int, tuple[bytes, str, float]]:
+        """Wait for the thread (if started); the previews it made, by frame sequence."""
+        if self._thread.is_alive():
+            self._thread.join()
+        return self._made
+
+
 def stream_processed(
-    processed: Processed, log_path: Path, viewer: RunViewer, *, frame_reduction: int = 2
+    processed: Processed,
+    log_path: Path,
+    viewer: RunViewer,
+    *,
+    frame_reduction: int = 2,
+    previews: FramePreviews | None = None,
 ) -> None:
     """Log a processed run: results series, every frame with its overlays, events.
 
     Frames go in at 1/``frame_reduction`` of their size (2 by default: a 20 s run's
-    recording loads in seconds; 1 keeps the logged frames as they are).
+    recording loads in seconds; 1 keeps the logged frames as they are), taken from
+    ``previews`` where it made them at that size (:class:`FramePreviews`), and sent to
+    Rerun as columns, 16 frames per call.
     """
     ds = processed.results
     viewer.log_results(ds)
@@ -136,6 +209,22 @@ def stream_processed(
     frame_t = ds["frame_time"].values
     by_seq = {f.sequence: (i, f) for i, f in enumerate(processed.frames)}
     length = processed.calibration.beam_length_m
+    made: dict[int, tuple[bytes, str, float]] = {}
+    if previews is not None and previews.reduction == frame_reduction:
+        made = previews.take()
+    elif previews is not None:
+        previews.stop()
+    times: list[float] = []
+    images: list[bytes] = []
+    encodings: list[str] = []
+    overlays: list[FrameOverlay | None] = []
+
+    def send() -> None:
+        if times:
+            viewer.log_frames(times, images, encodings, overlays)
+            for column in (times, images, encodings, overlays):
+                column.clear()
+
     for frame in iter_frames(log_path):
         hit = by_seq.get(frame.sequence)
         if hit is None:
@@ -145,9 +234,18 @@ def stream_processed(
         shape = None
         if np.isfinite(t) and sim.time_s[0] <= t <= sim.time_s[-1]:
             shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
-        data, encoding, scale = displayed_frame(frame.data, frame.encoding, frame_reduction)
+        shown = made.pop(frame.sequence, None)
+        if shown is None:
+            shown = displayed_frame(frame.data, frame.encoding, frame_reduction)
+        data, encoding, scale = shown
         overlay = frame_overlay(
             measured.measurement, processed.calibration.to_px, shape, length, scale=scale
         )
-        viewer.log_frame(t, data, encoding, overlay)
+        times.append(t)
+        images.append(data)
+        encodings.append(encoding)
+        overlays.append(overlay)
+        if len(times) >= _FRAMES_PER_BATCH:
+            send()
+    send()
     viewer.log_events(processed.events, t0_ns=t0_ns)

@@ -306,3 +306,72 @@ def test_the_blueprint_lays_out_every_logged_entity(tmp_path: Path) -> None:
     # Each gauge's panel shows its measured and simulated strain together.
     strain_panels = [qs for c, _, qs in views if c == "TimeSeries" and "/daq/strain/g2" in qs]
     assert strain_panels == [["/daq/strain/g2", "/sim/strain/g2"]]
+
+
+def _all_rows(path: Path) -> dict[tuple[str, str], list[tuple[Any, ...]]]:
+    """Every (entity, component) of a recording's data: its rows as (time, frame, value),
+    sorted; the blueprint and the recording's properties left out."""
+    out: dict[tuple[str, str], list[tuple[Any, ...]]] = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path.startswith("/__properties"):
+            continue
+        rb = chunk.to_record_batch()
+        names = rb.schema.names
+        times = rb.column("time").cast(pa.int64()).to_pylist() if "time" in names else None
+        frames = rb.column("frame").to_pylist() if "frame" in names else None
+        for name in names:
+            if ":" not in name:
+                continue
+            values = rb.column(name).to_pylist()
+            for k, v in enumerate(values):
+                if v is None:
+                    continue
+                key = (times[k] if times else None, frames[k] if frames else None, repr(v))
+                out.setdefault((chunk.entity_path, name), []).append(key)
+    return {k: sorted(v, key=repr) for k, v in out.items()}
+
+
+def test_frames_sent_as_columns_are_the_frames_logged_one_by_one(tmp_path: Path) -> None:
+    """``log_frames`` (the processed run's path) writes what ``log_frame`` per frame
+    writes: the same entities, components, times, frame numbers and values, with
+    overlays, failed frames (clearing and a reason), frames without overlays, and
+    overlays with some parts missing."""
+    rng = np.random.default_rng(3)
+    jpeg = cv2.imencode(".jpg", rng.integers(0, 255, (36, 52, 3), np.uint8))[1].tobytes()
+    png = _png(30, 20)
+
+    def full(k: int) -> FrameOverlay:
+        centre = rng.uniform(0, 50, (5 + k, 2))
+        return FrameOverlay(
+            centreline_px=centre,
+            hub_line_px=rng.uniform(0, 50, (2, 2)),
+            rigid_line_px=rng.uniform(0, 50, (2, 2)),
+            sim_beam_px=centre + 0.25,
+            difference_px=centre - 1.5,
+            tip_px=rng.uniform(0, 50, 2),
+            ok=True,
+        )
+
+    frames: list[tuple[float, bytes, str, FrameOverlay | None]] = [
+        (0.0125, jpeg, "jpeg", full(0)),
+        (0.0791, png, "PNG", FrameOverlay(ok=False, reason="beam not found")),
+        (0.1457, jpeg, "jpeg", None),
+        (0.2123, jpeg, "jpeg", full(3)),
+        (0.2789, png, "png", FrameOverlay(ok=False, reason="")),
+        (0.3455, jpeg, "jpeg", FrameOverlay(centreline_px=[[1.0, 2.0], [3.0, 4.0]], ok=True)),
+        (0.4121, jpeg, "jpeg", full(1)),
+    ]
+    one = tmp_path / "one.rrd"
+    with open_viewer("beambench-test", rrd_path=one) as viewer:
+        for t, d, e, o in frames:
+            viewer.log_frame(t, d, e, o)
+    columns = tmp_path / "columns.rrd"
+    with open_viewer("beambench-test", rrd_path=columns) as viewer:
+        viewer.log_frames(
+            [f[0] for f in frames], [f[1] for f in frames], [f[2] for f in frames],
+            [f[3] for f in frames],
+        )  # fmt: skip
+    expected = _all_rows(one)
+    assert ("/camera/image/sim_stations", "Points2D:positions") in expected
+    assert ("/events/frames", "TextLog:text") in expected
+    assert _all_rows(columns) == expected

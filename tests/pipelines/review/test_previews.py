@@ -1,0 +1,67 @@
+"""The recording's frames made ahead, in a thread while the frames are measured: the
+``.rrd`` is the one made without them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pyarrow as pa
+import pytest
+from rerun.chunk import RrdReader
+
+from daq.log import iter_frames
+from pipelines.demo import capture_synthetic
+from pipelines.process.run import process_run
+from pipelines.review.overlays import FramePreviews, stream_processed
+from pipelines.review.viewer import open_viewer
+from pipelines.rig import load_rig
+
+
+def _data_rows(path: Path) -> dict[tuple[str, str], list[tuple[Any, ...]]]:
+    """(entity, component) -> its rows (time, frame, value), the recording's own
+    properties left out."""
+    out: dict[tuple[str, str], list[tuple[Any, ...]]] = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path.startswith("/__properties"):
+            continue
+        rb = chunk.to_record_batch()
+        names = rb.schema.names
+        times = rb.column("time").cast(pa.int64()).to_pylist() if "time" in names else None
+        frames = rb.column("frame").to_pylist() if "frame" in names else None
+        for name in (n for n in names if ":" in n):
+            for k, v in enumerate(rb.column(name).to_pylist()):
+                if v is not None:
+                    row = (times[k] if times else None, frames[k] if frames else None, repr(v))
+                    out.setdefault((chunk.entity_path, name), []).append(row)
+    return {k: sorted(v, key=repr) for k, v in out.items()}
+
+
+@pytest.mark.slow
+def test_previews_made_during_the_frames_give_the_same_recording(tmp_path: Path) -> None:
+    reduction = 4  # not the default 2
+    log_path = tmp_path / "run.mcap"
+    capture_synthetic(load_rig(), log_path, 2.0)
+    previews = FramePreviews(log_path, reduction).start()
+    processed = process_run(log_path, model="modal", workers=1)
+    made = dict(previews.take())
+    frames = list(iter_frames(log_path))
+    assert sorted(made) == [f.sequence for f in frames]
+    image = cv2.imdecode(np.frombuffer(made[frames[0].sequence][0], np.uint8), 0)
+    assert image.shape == (frames[0].height_px // reduction, frames[0].width_px // reduction)
+    ahead, inline = tmp_path / "ahead.rrd", tmp_path / "inline.rrd"
+    with open_viewer("beambench-test", rrd_path=ahead) as viewer:
+        stream_processed(processed, log_path, viewer, frame_reduction=reduction, previews=previews)
+    with open_viewer("beambench-test", rrd_path=inline) as viewer:
+        stream_processed(processed, log_path, viewer, frame_reduction=reduction)
+    rows = _data_rows(ahead)
+    assert len(rows[("/camera/image", "EncodedImage:blob")]) == len(frames)
+    assert rows == _data_rows(inline)
+    # previews made at another size are not used (and the thread is stopped)
+    other = FramePreviews(log_path, 2).start()
+    again = tmp_path / "again.rrd"
+    with open_viewer("beambench-test", rrd_path=again) as viewer:
+        stream_processed(processed, log_path, viewer, frame_reduction=reduction, previews=other)
+    assert _data_rows(again) == rows
