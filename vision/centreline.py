@@ -289,20 +289,32 @@ def long_run_inflation(res: NDArray[np.float64], max_lag: int = LONG_RUN_LAGS) -
     near 0.8) whose lobes cancel in any smooth sum over several of its periods, which
     the lag-1 form counts as a ninefold variance. Summing the measured correlations
     over many lags counts what does not cancel."""
-    n = len(res)
-    if n < 8:
+    return long_run_inflation_max([np.asarray(res, dtype=np.float64)], max_lag)
+
+
+def long_run_inflation_max(spans: list[NDArray[np.float64]], max_lag: int = LONG_RUN_LAGS) -> float:
+    """The largest :func:`long_run_inflation` over residual ``spans`` (one per edge),
+    their autocorrelations taken in one transform."""
+    spans = [x for x in spans if len(x) >= 8]
+    if not spans:
         return 1.0
-    x = np.asarray(res, dtype=np.float64)
-    den = float(x @ x)
-    if den <= 0:
-        return 1.0
-    k_max = int(min(max_lag, n // 4))
-    size = 1 << math.ceil(math.log2(n + k_max + 1))
-    f = np.fft.rfft(x, size)
-    acov = np.fft.irfft(f * np.conj(f), size)[1 : k_max + 1]
-    lags = np.arange(1, k_max + 1)
-    factor = 1.0 + 2.0 * float(np.sum((1.0 - lags / (k_max + 1.0)) * acov)) / den
-    return max(factor, 1.0)
+    n_max = max(len(x) for x in spans)
+    size = 1 << math.ceil(math.log2(n_max + min(max_lag, n_max // 4) + 1))
+    stack = np.zeros((len(spans), size))
+    for i, x in enumerate(spans):
+        stack[i, : len(x)] = x
+    f = np.fft.rfft(stack, axis=1)
+    acov = np.fft.irfft(f * np.conj(f), size, axis=1)
+    best = 1.0
+    for i, x in enumerate(spans):
+        den = float(acov[i, 0])
+        if den <= 0:
+            continue
+        k_max = int(min(max_lag, len(x) // 4))
+        lags = np.arange(1, k_max + 1)
+        factor = 1.0 + 2.0 * float((1.0 - lags / (k_max + 1.0)) @ acov[i, 1 : k_max + 1]) / den
+        best = max(best, factor)
+    return best
 
 
 def fit_centreline(
@@ -454,6 +466,9 @@ class JointFit:
     #: freedom when the modes hold the shape.
     shape_chi2: float = math.nan
     shape_dof: int = 0
+    #: Which points (the beam's left, right, then the hub's edges, as given) the fit
+    #: kept (None where not recorded).
+    inliers: NDArray[np.bool_] | None = None
 
 
 def fit_clamped_joint(
@@ -469,6 +484,7 @@ def fit_clamped_joint(
     beam_length: float = math.nan,
     along: CentreLine | ModalCentreLine | None = None,
     edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+    inliers: NDArray[np.bool_] | None = None,
 ) -> JointFit | str:
     """The hub's axis and the clamped centre line, fitted together.
 
@@ -503,10 +519,14 @@ def fit_clamped_joint(
     155 mm at its tip (slope 0.28) has edges 0.4 mm further apart across the axis there
     than at its root, which a constant width leaves in the residuals, in runs.
 
+    ``inliers``: another fit's :attr:`JointFit.inliers` on the same points (the modal
+    fit's, for its polynomial reference): taken instead of choosing them again, one fit
+    instead of up to six (ignored where that fit dropped the hub's edges).
+
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
     if modes <= 0:
         return _fit_joint(
-            left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, None, edge_slope
+            left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, None, edge_slope, inliers
         )
     if not (math.isfinite(beam_length) and beam_length > 0):
         raise ValueError(f"beam_length must be positive with modes, got {beam_length!r}")
@@ -527,7 +547,17 @@ def fit_clamped_joint(
         along = first.fit.centre
     shape = _Modes(modes, beam_length, amax, arc_map(along, amax))
     slope_fn = along.deriv if edge_slope is not None else None
-    return _fit_joint(left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, shape, slope_fn)
+    return _fit_joint(
+        left,
+        right,
+        hub_a,
+        hub_b,
+        degree,
+        amax,
+        clamp_from_pivot,
+        shape,
+        slope_fn,
+    )
 
 
 @dataclass
@@ -561,6 +591,7 @@ def _fit_joint(
     clamp_from_pivot: float,
     modal: _Modes | None,
     edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+    inliers: NDArray[np.bool_] | None = None,
 ) -> JointFit | str:
     """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space."""
     nl, nr = len(left), len(right)
@@ -596,7 +627,14 @@ def _fit_joint(
     w = np.ones(n_all)
     keep = np.ones(n_all, dtype=bool)
     sig = np.ones(n_all)
-    for it in range(5):
+    given = inliers is not None and len(inliers) == n_all
+    if given:  # another fit's inliers: each group's scale from one fit to them
+        keep = np.asarray(inliers, dtype=bool).copy()
+        r = b - _wlstsq(a_t, b, keep.astype(np.float64)) @ a_t
+        for g in groups:
+            rg = r[g][keep[g]]
+            sig[g] = 1.4826 * median(np.abs(rg)) + 1e-12 if len(rg) else 1.0
+    for it in range(0 if given else 5):
         coef = _wlstsq(a_t, b, w / sig**2)
         r = b - coef @ a_t
         for g in groups:
@@ -615,7 +653,15 @@ def _fit_joint(
     ):  # the hub's edges are not straight lines: the beam's root alone
         empty = np.zeros((0, 2))
         return _fit_joint(
-            left, right, empty, empty, degree, amax, clamp_from_pivot, modal, edge_slope
+            left,
+            right,
+            empty,
+            empty,
+            degree,
+            amax,
+            clamp_from_pivot,
+            modal,
+            edge_slope,
         )
     # Final fit: the inliers, each group at its own variance (from its residuals).
     wk = np.zeros(n_all)
@@ -633,7 +679,7 @@ def _fit_joint(
     spans = [(0, nl), (nl, n_beam)]
     if use_hub:
         spans += [(n_beam, n_beam + len(hub_a)), (n_beam + len(hub_a), n_all)]
-    infl = max(long_run_inflation(r[i:j][keep[i:j]]) for i, j in spans)
+    infl = long_run_inflation_max([r[i:j][keep[i:j]] for i, j in spans])
     cov = np.linalg.inv(gram) * infl
     g_tip = np.zeros(n_coef)
     if modal is None:
@@ -701,4 +747,5 @@ def _fit_joint(
         hub_rms=hub_rms,
         shape_chi2=shape_chi2,
         shape_dof=shape_dof,
+        inliers=keep,
     )

@@ -228,7 +228,8 @@ class Measurer:
         hub_pts, (pa, pb), spread = self._scan(image, rough, back, clamp, e, n, hub_w, w_beam)
         blur = median(spread)
         smear_px = 0.0
-        tip_blur = float(np.percentile(spread, 90))
+        k90 = int(0.9 * (len(spread) - 1))
+        tip_blur = float(np.partition(spread, k90)[k90])  # the 90th percentile
         if blur <= self.max_blur_px and tip_blur > _TIP_BLUR_FACTOR * self.max_blur_px:
             # A beam swinging about its root smears most toward its tip: a sharp root
             # and an outer tenth smeared beyond the edges' reach. Its edges there are
@@ -450,6 +451,7 @@ class Measurer:
             amax,
             d_clamp,
             edge_slope=poly.fit.centre.deriv if edges else None,
+            inliers=joint.inliers,
         )
         if isinstance(ref, str):
             return None
@@ -698,7 +700,11 @@ def _rough_slope(
     deg = min(4, max(len(a) - 2, 0))
     if deg < 1:
         return lambda q: np.zeros_like(np.asarray(q, dtype=np.float64))
-    der = np.polynomial.polynomial.polyder(np.polynomial.polynomial.polyfit(a / scale, b, deg))
+    # Least squares by the normal equations (a quartic in a / scale on [0, 1]: well
+    # conditioned; a tenth of polyfit's SVD).
+    vand = np.vander(a / scale, deg + 1, increasing=True)
+    coef = np.linalg.solve(vand.T @ vand, vand.T @ b)
+    der = coef[1:] * np.arange(1, deg + 1)
 
     def slope(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.asarray(np.polynomial.polynomial.polyval(np.asarray(q) / scale, der) / scale)
