@@ -26,6 +26,7 @@ fit against the generic one and falls back on the latter when they disagree.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -271,6 +272,51 @@ def correlation_inflation(res: NDArray[np.float64]) -> float:
     return (1.0 + rho) / (1.0 - rho)
 
 
+#: Lags (scan lines) over which :func:`long_run_inflation` sums the residuals'
+#: autocorrelation (at most a quarter of the edge's points).
+LONG_RUN_LAGS = 64
+
+
+def long_run_inflation(res: NDArray[np.float64], max_lag: int = LONG_RUN_LAGS) -> float:
+    """Variance factor for smooth weighted sums (a fit's coefficients) of residuals
+    ``res`` ordered along an edge: their spectral density at low frequency over their
+    variance, ``1 + 2 sum_k (1 - k / (K + 1)) rho_k`` over lags ``k = 1 .. K`` (Bartlett's
+    window, ``K = min(max_lag, N / 4)``), at least 1.
+
+    The lag-1 form of :func:`correlation_inflation`, ``(1 + rho_1) / (1 - rho_1)``, is
+    exact for a first-order process, but an edge nearly along the pixel grid leaves the
+    edge estimator's pixel-phase error in the residuals: a slow periodic wave (``rho_1``
+    near 0.8) whose lobes cancel in any smooth sum over several of its periods, which
+    the lag-1 form counts as a ninefold variance. Summing the measured correlations
+    over many lags counts what does not cancel."""
+    return long_run_inflation_max([np.asarray(res, dtype=np.float64)], max_lag)
+
+
+def long_run_inflation_max(spans: list[NDArray[np.float64]], max_lag: int = LONG_RUN_LAGS) -> float:
+    """The largest :func:`long_run_inflation` over residual ``spans`` (one per edge),
+    their autocorrelations taken in one transform."""
+    spans = [x for x in spans if len(x) >= 8]
+    if not spans:
+        return 1.0
+    n_max = max(len(x) for x in spans)
+    size = 1 << math.ceil(math.log2(n_max + min(max_lag, n_max // 4) + 1))
+    stack = np.zeros((len(spans), size))
+    for i, x in enumerate(spans):
+        stack[i, : len(x)] = x
+    f = np.fft.rfft(stack, axis=1)
+    acov = np.fft.irfft(f * np.conj(f), size, axis=1)
+    best = 1.0
+    for i, x in enumerate(spans):
+        den = float(acov[i, 0])
+        if den <= 0:
+            continue
+        k_max = int(min(max_lag, len(x) // 4))
+        lags = np.arange(1, k_max + 1)
+        factor = 1.0 + 2.0 * float((1.0 - lags / (k_max + 1.0)) @ acov[i, 1 : k_max + 1]) / den
+        best = max(best, factor)
+    return best
+
+
 def fit_centreline(
     left: NDArray[np.float64], right: NDArray[np.float64], degree: int, amax: float
 ) -> CentreFit | str:
@@ -420,6 +466,9 @@ class JointFit:
     #: freedom when the modes hold the shape.
     shape_chi2: float = math.nan
     shape_dof: int = 0
+    #: Which points (the beam's left, right, then the hub's edges, as given) the fit
+    #: kept (None where not recorded).
+    inliers: NDArray[np.bool_] | None = None
 
 
 def fit_clamped_joint(
@@ -434,6 +483,8 @@ def fit_clamped_joint(
     modes: int = 0,
     beam_length: float = math.nan,
     along: CentreLine | ModalCentreLine | None = None,
+    edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+    inliers: NDArray[np.bool_] | None = None,
 ) -> JointFit | str:
     """The hub's axis and the clamped centre line, fitted together.
 
@@ -459,9 +510,24 @@ def fit_clamped_joint(
     line; without it, ``s`` is taken from a first fit: two fits). The result's
     ``shape_chi2`` then tests the modes against the modes and the polynomial together.
 
+    ``edge_slope``: the centre line's slope ``db/da`` at axis coordinates ``a`` (a
+    previous fit's or a rough one's; None: 0). A beam's edges lie half its width either
+    side of the centre line along its normal, so at slope angle ``theta`` an edge point
+    at ``a`` lies ``(width / 2) / cos(theta)`` across the axis from the centre line at
+    the same ``a`` (to ``b'' (w/2)^2 sin^2(theta) / 2``, the same for both edges:
+    micrometres): the width's column carries ``sqrt(1 + slope^2)``. A beam swinging
+    155 mm at its tip (slope 0.28) has edges 0.4 mm further apart across the axis there
+    than at its root, which a constant width leaves in the residuals, in runs.
+
+    ``inliers``: another fit's :attr:`JointFit.inliers` on the same points (the modal
+    fit's, for its polynomial reference): taken instead of choosing them again, one fit
+    instead of up to six (ignored where that fit dropped the hub's edges).
+
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
     if modes <= 0:
-        return _fit_joint(left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, None)
+        return _fit_joint(
+            left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, None, edge_slope, inliers
+        )
     if not (math.isfinite(beam_length) and beam_length > 0):
         raise ValueError(f"beam_length must be positive with modes, got {beam_length!r}")
     if along is None:
@@ -474,12 +540,24 @@ def fit_clamped_joint(
             amax,
             clamp_from_pivot,
             _Modes(modes, beam_length, amax, None),
+            edge_slope,
         )
         if isinstance(first, str):
             return first
         along = first.fit.centre
     shape = _Modes(modes, beam_length, amax, arc_map(along, amax))
-    return _fit_joint(left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, shape)
+    slope_fn = along.deriv if edge_slope is not None else None
+    return _fit_joint(
+        left,
+        right,
+        hub_a,
+        hub_b,
+        degree,
+        amax,
+        clamp_from_pivot,
+        shape,
+        slope_fn,
+    )
 
 
 @dataclass
@@ -512,6 +590,8 @@ def _fit_joint(
     amax: float,
     clamp_from_pivot: float,
     modal: _Modes | None,
+    edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+    inliers: NDArray[np.bool_] | None = None,
 ) -> JointFit | str:
     """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space."""
     nl, nr = len(left), len(right)
@@ -529,6 +609,8 @@ def _fit_joint(
     n_coef = 2 + (2 if use_hub else 0) + p_shape
     a_t = np.zeros((n_coef, n_all))
     a_t[0, :nl], a_t[0, nl:n_beam] = 0.5, -0.5  # width
+    if edge_slope is not None:  # half the width along the normal: 1 / cos(theta) across
+        a_t[0, :n_beam] *= np.sqrt(1.0 + np.asarray(edge_slope(a_all[:n_beam])) ** 2)
     a_t[1] = a_all + clamp_from_pivot  # the axis's turn
     if use_hub:
         a_t[2, n_beam : n_beam + len(hub_a)] = 1.0
@@ -545,7 +627,14 @@ def _fit_joint(
     w = np.ones(n_all)
     keep = np.ones(n_all, dtype=bool)
     sig = np.ones(n_all)
-    for it in range(5):
+    given = inliers is not None and len(inliers) == n_all
+    if given:  # another fit's inliers: each group's scale from one fit to them
+        keep = np.asarray(inliers, dtype=bool).copy()
+        r = b - _wlstsq(a_t, b, keep.astype(np.float64)) @ a_t
+        for g in groups:
+            rg = r[g][keep[g]]
+            sig[g] = 1.4826 * median(np.abs(rg)) + 1e-12 if len(rg) else 1.0
+    for it in range(0 if given else 5):
         coef = _wlstsq(a_t, b, w / sig**2)
         r = b - coef @ a_t
         for g in groups:
@@ -563,7 +652,17 @@ def _fit_joint(
         keep[n_beam : n_beam + len(hub_a)].sum() < 3 or keep[n_beam + len(hub_a) :].sum() < 3
     ):  # the hub's edges are not straight lines: the beam's root alone
         empty = np.zeros((0, 2))
-        return _fit_joint(left, right, empty, empty, degree, amax, clamp_from_pivot, modal)
+        return _fit_joint(
+            left,
+            right,
+            empty,
+            empty,
+            degree,
+            amax,
+            clamp_from_pivot,
+            modal,
+            edge_slope,
+        )
     # Final fit: the inliers, each group at its own variance (from its residuals).
     wk = np.zeros(n_all)
     r = b - _wlstsq(a_t, b, np.where(keep, 1.0 / sig**2, 0.0)) @ a_t
@@ -580,7 +679,7 @@ def _fit_joint(
     spans = [(0, nl), (nl, n_beam)]
     if use_hub:
         spans += [(n_beam, n_beam + len(hub_a)), (n_beam + len(hub_a), n_all)]
-    infl = max(correlation_inflation(r[i:j][keep[i:j]]) for i, j in spans)
+    infl = long_run_inflation_max([r[i:j][keep[i:j]] for i, j in spans])
     cov = np.linalg.inv(gram) * infl
     g_tip = np.zeros(n_coef)
     if modal is None:
@@ -648,4 +747,5 @@ def _fit_joint(
         hub_rms=hub_rms,
         shape_chi2=shape_chi2,
         shape_dof=shape_dof,
+        inliers=keep,
     )
