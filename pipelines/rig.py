@@ -464,21 +464,32 @@ def _fill_missing(
     cls: type, section: dict[str, Any], default: dict[str, Any], source: str, name: str
 ) -> dict[str, Any]:
     """``section`` with every key it lacks taken from the shipped rig's ``default``
-    section, each with a warning naming it (design.md: never filled without a word)."""
+    section, with a warning naming them (design.md: never filled without a word): one
+    line a section (a log recorded before keys were added lacks all of them)."""
     fields = {f.name for f in dataclasses.fields(cls)}
     given = {_field_of(k, fields) for k in section}
     out = dict(section)
-    for key, value in default.items():
-        if _field_of(key, fields) not in given:
-            log.warning(
-                "%s: [%s.%s] is missing; using the shipped default %s = %r",
-                source,
-                name,
-                key,
-                key,
-                value,
-            )
-            out[key] = value
+    missing = [key for key in default if _field_of(key, fields) not in given]
+    for key in missing:
+        out[key] = default[key]
+    if len(missing) == 1:
+        (key,) = missing
+        log.warning(
+            "%s: [%s.%s] is missing; using the shipped default %s = %r",
+            source,
+            name,
+            key,
+            key,
+            default[key],
+        )
+    elif missing:
+        log.warning(
+            "%s: [%s] lacks %d keys; using the shipped defaults %s",
+            source,
+            name,
+            len(missing),
+            ", ".join(f"{key} = {default[key]!r}" for key in missing),
+        )
     return out
 
 
