@@ -136,6 +136,17 @@ def _projections(basis: FloatArray, y: FloatArray) -> FloatArray:
     return np.asarray(solve_triangular(upper, basis.T @ y, trans="T", lower=False))
 
 
+def _welch(t: FloatArray, resid: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The one-sided PSD (rad^2/Hz) of a residual sampled at times ``t`` (resampled onto
+    a uniform grid: the trace may have gaps), Welch with 2 s segments: (frequencies, PSD)."""
+    from scipy.signal import welch
+
+    dt = float(t[-1] - t[0]) / (t.size - 1)
+    grid = np.linspace(t[0], t[-1], t.size)
+    f, pxx = welch(np.interp(grid, t, resid), fs=1.0 / dt, nperseg=min(t.size, round(2.0 / dt)))
+    return np.asarray(f, dtype=float), np.asarray(pxx, dtype=float)
+
+
 def _noise_psd(t: FloatArray, resid: FloatArray, f_max_hz: float, n_fitted: int) -> float:
     """The noise's mean one-sided PSD (rad^2/Hz) below ``f_max_hz``, from the residual of
     a fit of ``n_fitted`` parameters in that band (Welch, 2 s segments): the noise where
@@ -143,11 +154,7 @@ def _noise_psd(t: FloatArray, resid: FloatArray, f_max_hz: float, n_fitted: int)
     150 Hz filter is white below it, not up to 200 Hz). The band holds ``2 f_max T``
     degrees of freedom of which the fit took ``n_fitted`` (6 % over 16 cycles): the
     residual's PSD is scaled up by that share."""
-    from scipy.signal import welch
-
-    dt = float(t[-1] - t[0]) / (t.size - 1)
-    grid = np.linspace(t[0], t[-1], t.size)
-    f, pxx = welch(np.interp(grid, t, resid), fs=1.0 / dt, nperseg=min(t.size, round(2.0 / dt)))
+    f, pxx = _welch(t, resid)
     band = (f > 0) & (f <= f_max_hz)
     psd = float(np.mean(pxx[band])) if band.any() else float(np.mean(pxx[1:]))
     dof = 2.0 * f_max_hz * float(t[-1] - t[0])
@@ -176,12 +183,9 @@ def _white_psd_above(t: FloatArray, resid: FloatArray, band_hz: float) -> float:
     bandwidth ``band_hz`` took out of it, below the anti-alias filter's roll-off (the
     DAQ's filter passes 0.375 of the rate), where the potentiometer's noise is white. NaN
     when that band is empty."""
-    from scipy.signal import welch
-
-    dt = float(t[-1] - t[0]) / (t.size - 1)
-    grid = np.linspace(t[0], t[-1], t.size)
-    f, pxx = welch(np.interp(grid, t, resid), fs=1.0 / dt, nperseg=min(t.size, round(2.0 / dt)))
-    band = (f >= 1.5 * band_hz) & (f <= 0.25 / dt)
+    f, pxx = _welch(t, resid)
+    rate_hz = (t.size - 1) / float(t[-1] - t[0])
+    band = (f >= 1.5 * band_hz) & (f <= 0.25 * rate_hz)
     return float(np.mean(pxx[band])) if band.any() else math.nan
 
 
