@@ -1,0 +1,78 @@
+"""The measurement on frames drawn by other hands (:mod:`tests.vision.other_renderer`:
+OpenCV's camera and polygons, clamped-free mode shapes, JPEG by OpenCV), so that the
+renderer and the measurer do not share assumptions: every frame measured or refused
+with a reason, and every measured frame's hub angle and tip lateral within 3 of its
+stated standard uncertainties ("never ok with an error outside the stated uncertainty
+at 3 sigma", issue #20)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tests.vision.other_renderer import (
+    SQUARE_CORNERS_M,
+    Bench,
+    exposure,
+    random_camera,
+    render,
+)
+from vision import Calibration, Measurer
+
+CASES = {
+    # name: (hub length, width m), tip smear m, lighting gradient, frames, least measured
+    "bar": ((0.2, 0.04), 0.0, 0.15, 5, 5),
+    "block": ((0.068, 0.051), 0.0, 0.15, 5, 5),
+    "bar-smear-20-even-light": ((0.2, 0.04), 0.020, 0.0, 4, 4),
+    "bar-smear-20": ((0.2, 0.04), 0.020, 0.15, 8, 8),
+}
+#: Known to fail: a smeared beam is measured from the centroids of its light on cuts
+#: across it, and its stated uncertainty is too small on this renderer's smeared
+#: frames: 1-3 of 12 frames at 3-4 stated sd (0.1-0.3 mm at the tip), both ways. A
+#: lighting gradient adds a bias toward the brighter side (mean tip error +0.08 mm over
+#: 12 smear-40 frames, +0.02 mm in even light): the background under a cut is taken flat
+#: (the median of its ends), and the leftover slope's first moment over the smear-wide
+#: window moves the centroid. Two fixes were tried and backed out: a slope per cut (its
+#: noise cost our own smear-20 set 0.032 -> 0.079 mm RMS) and a window cut to the band
+#: (it truncated light: 10 sd).
+KNOWN = {"bar-smear-20": "smeared frames: stated sd too small (3-4 sd), lighting gradient bias"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "case",
+    [
+        pytest.param(c, marks=pytest.mark.xfail(strict=True, reason=KNOWN[c])) if c in KNOWN else c
+        for c in CASES
+    ],
+)
+def test_frames_drawn_by_other_hands_are_measured_within_their_stated_uncertainty(
+    case: str,
+) -> None:
+    (hub_len, hub_w), smear, gradient, n, least = CASES[case]
+    rng = np.random.default_rng(sum(map(ord, case)))
+    measured, lines = 0, []
+    for k in range(n):
+        cam = random_camera(rng)
+        bench = Bench(cam, hub_length_m=hub_len, hub_width_m=hub_w, gradient=gradient)
+        states, mid = exposure(rng, smear)
+        image = render(bench, states, rng)
+        cal = Calibration(cam.px(SQUARE_CORNERS_M), SQUARE_CORNERS_M, cam.K, cam.dist)
+        m = Measurer(cal).measure(image)
+        if not m.ok:
+            assert m.reason, "a refused frame says why"
+            lines.append(f"{k}: refused: {m.reason}")
+            continue
+        measured += 1
+        _, _, tip_lat, _ = mid.centre_line()
+        d_hub = (m.hub_angle_rad - mid.hub_angle_rad + math.pi) % (2 * math.pi) - math.pi
+        d_tip = m.tip_lateral_m - tip_lat
+        lines.append(
+            f"{k}: hub {math.degrees(d_hub):+.4f} deg ({d_hub / m.hub_angle_std_rad:+.1f} sd), "
+            f"tip {d_tip * 1e3:+.3f} mm ({d_tip / m.tip_lateral_std_m:+.1f} sd)"
+        )
+        assert abs(d_hub) <= 3 * m.hub_angle_std_rad, "\n".join(lines)
+        assert abs(d_tip) <= 3 * m.tip_lateral_std_m, "\n".join(lines)
+    assert measured >= least, "\n".join(lines)
