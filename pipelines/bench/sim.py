@@ -11,7 +11,8 @@ model and setting, the wall time of the solve per simulated second and the maxim
 tip-lateral error over the last three drive cycles (reciprocating) or the whole run
 (spin-up), absolute and relative to the largest reference tip deflection in that window.
 On the damped scene radau5 also runs at fixed steps (``fixed_step_s``, no error control), the
-step chosen per mesh as Exudyn's rows choose theirs; those rows' errors are only the
+step chosen per mesh as Exudyn's rows choose theirs, with 3 stages (order 5) and with 5
+(order 9, ``stages=5``: longer steps at equal error); those rows' errors are only the
 measured ones (``auto`` never picks a fixed step).
 
 If Exudyn is installed (the ``peers`` extra), its ANCF cable (:mod:`pipelines.bench.peers_exudyn`)
@@ -169,27 +170,37 @@ def _spin_candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimR
     ]
 
 
-#: fixed-step radau5 rows of the damped scene, (elements, step s, Newton's tolerance): the
-#: step as Exudyn's rows fix theirs, chosen where the time error matches the mesh's
-#: spatial error (2 elements: 8e-5 spatial; Newton does not converge above ~0.03 s)
-_FIXED_STEPS = ((2, 0.025, 1e-4), (2, 0.03, 1e-3), (3, 0.025, 1e-4), (5, 0.015, 1e-5),
-                (6, 0.015, 1e-6), (8, 0.0125, 1e-6))  # fmt: skip
-_FIXED_STEPS_QUICK = ((2, 0.025, 1e-4),)
+#: fixed-step radau5 rows of the damped scene, (elements, step s, Newton's tolerance,
+#: Radau IIA stages): the step as Exudyn's rows fix theirs, chosen where the time error
+#: matches the mesh's spatial error (2 elements: 8e-5 spatial; at 3 stages Newton does not
+#: converge above ~0.03 s). At 5 stages (order 9) 0.05 s leaves the spatial error alone
+#: on every mesh (2, 3, 5, 7 elements: 7.8e-5, 1.6e-5, 2.7e-6, 1.0e-6 against the
+#: 12-element reference); Newton's test there at 3e-5 or tighter (looser, the stages'
+#: iteration error spoils the next step's predictor and Newton diverges)
+_FIXED_STEPS = ((2, 0.025, 1e-4, 3), (2, 0.03, 1e-3, 3), (3, 0.025, 1e-4, 3), (5, 0.015, 1e-5, 3),
+                (6, 0.015, 1e-6, 3), (8, 0.0125, 1e-6, 3), (2, 0.05, 3e-5, 5),
+                (3, 0.05, 3e-5, 5), (5, 0.05, 1e-5, 5), (7, 0.05, 1e-6, 5))  # fmt: skip
+_FIXED_STEPS_QUICK = ((2, 0.025, 1e-4, 3), (2, 0.05, 3e-5, 5))
 
 
 def _damped_candidates(quick: bool) -> list[tuple[str, str, Callable[[Scene], SimResult]]]:
     """The fixed-step rows, for the damped (reciprocating) scene only: undamped spin-ups
     keep their fast modes, which a fixed step would have to resolve."""
 
-    def fixed(n: int, h: float, tol: float) -> Callable[[Scene], SimResult]:
+    def fixed(n: int, h: float, tol: float, stages: int) -> Callable[[Scene], SimResult]:
         return lambda s: simulate_fe(
             s.beam, s.drive, s.t_s, n_elements=n, a0_per_s=s.damping[0], a1_s=s.damping[1],
-            rtol=tol, atol=tol, method="radau5", fixed_step_s=h,
+            rtol=tol, atol=tol, method="radau5", fixed_step_s=h, stages=stages,
         )  # fmt: skip
 
+    def setting(n: int, h: float, tol: float, stages: int) -> str:
+        if stages == 3:
+            return f"{n} el., fixed h {h:g}, tol {tol:g}"
+        return f"{n} el., h {h:g}, {stages} stages, tol {tol:g}"
+
     return [
-        ("fe-corot radau5", f"{n} el., fixed h {h:g}, tol {tol:g}", fixed(n, h, tol))
-        for n, h, tol in (_FIXED_STEPS_QUICK if quick else _FIXED_STEPS)
+        ("fe-corot radau5", setting(n, h, tol, st), fixed(n, h, tol, st))
+        for n, h, tol, st in (_FIXED_STEPS_QUICK if quick else _FIXED_STEPS)
     ]
 
 

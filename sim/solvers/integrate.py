@@ -51,6 +51,7 @@ def integrate(
     rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None = None,
     second_order: bool = False,
     fixed_step_s: float | None = None,
+    stages: int = 3,
 ) -> Trajectory:
     """Integrate ``dy/dt = rhs(t, y)`` from ``t_eval_s[0]`` and return ``y`` at ``t_eval_s``.
 
@@ -73,6 +74,8 @@ def integrate(
         alone (:func:`sim.solvers.radau.radau5`); ignored by the other methods.
     fixed_step_s : "radau5" only: every step this long, no error control (see
         :func:`sim.solvers.radau.radau5`).
+    stages : "radau5" at a ``fixed_step_s`` only: Radau IIA stages, 3 (order 5), 4 or 5
+        (orders 7 and 9; see :func:`sim.solvers.radau.radau5`).
 
     Raises
     ------
@@ -87,10 +90,12 @@ def integrate(
         return Trajectory(y_start[None, :].copy(), 0.0, 0, 0, 0)
     if fixed_step_s is not None and method != "radau5":
         raise SimInputError("fixed_step_s", f"needs method 'radau5', got {method!r}")
+    if stages != 3 and method != "radau5":
+        raise SimInputError("stages", f"needs method 'radau5', got {method!r}")
     if method == "radau5":
         return _radau5(
             rhs, jac, t, y_start, rtol, atol, first_step_s, rhs_stages, jac_stages,
-            rhs_jac_stages, second_order, fixed_step_s,
+            rhs_jac_stages, second_order, fixed_step_s, stages,
         )  # fmt: skip
     kwargs: dict[str, object] = {"rtol": rtol, "atol": atol, "t_eval": t}
     kwargs["jac"] = jac
@@ -135,6 +140,7 @@ def _radau5(
     rhs_jac_stages: Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]] | None,
     second_order: bool,
     fixed_step_s: float | None,
+    stages: int = 3,
 ) -> Trajectory:
     def pointwise(ts: FloatArray, ys: FloatArray) -> FloatArray:
         return np.stack([rhs(float(tk), yk) for tk, yk in zip(ts, ys, strict=True)])
@@ -151,5 +157,6 @@ def _radau5(
         rhs_jac_stages=rhs_jac_stages,
         second_order=second_order,
         fixed_step_s=fixed_step_s,
+        stages=stages,
     )
     return Trajectory(y, wall, stats.n_rhs, stats.n_jac, stats.n_lu, stats.n_steps)

@@ -5,7 +5,9 @@ scikit-fem's convergence tests fit theirs.
 The problem has a closed form: a damped oscillator driven harmonically,
 x'' + 2 zeta w x' + w^2 x = cos(W t), x(0) = 1, x'(0) = 0 (non-autonomous, so the stage
 times matter). Steps from T/20 to T/160: errors 2e-4 .. 5e-9, in the asymptotic range
-(measured local slopes 5.08, 5.05, 5.03) and far above round-off.
+(measured local slopes 5.08, 5.05, 5.03) and far above round-off. With 4 and 5 stages
+(orders 7 and 9) the steps are T/10 .. T/40 and T/5 .. T/20 (errors 6e-5 .. 3e-9 and
+1e-4 .. 6e-10; local slopes 7.02, 7.03 and 8.88, 9.00): finer steps reach round-off.
 """
 
 from __future__ import annotations
@@ -59,16 +61,19 @@ def _jac_stages(ts: np.ndarray, ys: np.ndarray) -> np.ndarray:
     return np.broadcast_to(A, (ts.size, 2, 2)).copy()
 
 
-def _rate(errors: list[float]) -> float:
-    h = T_END / STEPS
+def _rate(errors: list[float], steps: np.ndarray = STEPS) -> float:
+    h = T_END / steps
     return float(np.polyfit(np.log(h), np.log(errors), 1)[0])
 
 
-def _radau5_end(n_steps: int, full_newton: bool) -> np.ndarray:
+def _radau5_end(
+    n_steps: int, full_newton: bool, stages: int = 3, second_order: bool = False
+) -> np.ndarray:
     # tolerances only set Newton's stop here: tight, so the iteration error is round-off
     y, stats, _ = radau5(
         _rhs_stages, _jac, np.array([0.0, T_END]), X0, rtol=1e-13, atol=1e-13,
         fixed_step_s=T_END / n_steps, jac_stages=_jac_stages if full_newton else None,
+        stages=stages, second_order=second_order,
     )  # fmt: skip
     assert stats.n_steps == n_steps and stats.n_rejected == 0
     return y[-1]
@@ -87,6 +92,24 @@ def test_radau5_at_a_fixed_step_is_fifth_order(full_newton: bool) -> None:
     errors = [float(np.max(np.abs(_radau5_end(n, full_newton) - exact))) for n in STEPS]
     assert errors[-1] < 1e-8
     assert _rate(errors) == pytest.approx(5.0, abs=0.15)
+
+
+@pytest.mark.parametrize(("stages", "steps"), [(4, [10, 20, 40]), (5, [5, 10, 20])])
+@pytest.mark.parametrize("second_order", [False, True])
+def test_more_stages_at_a_fixed_step_are_of_order_2s_minus_1(
+    stages: int, steps: list[int], second_order: bool
+) -> None:
+    exact = _exact(T_END)
+    errors = [
+        float(np.max(np.abs(_radau5_end(n, True, stages, second_order) - exact))) for n in steps
+    ]
+    assert errors[-1] < 1e-8
+    assert _rate(errors, np.array(steps)) == pytest.approx(2 * stages - 1, abs=0.15)
+
+
+def test_three_stages_are_the_default_bit_for_bit() -> None:
+    for n in STEPS[:2]:
+        np.testing.assert_array_equal(_radau5_end(n, True, 3), _radau5_end(n, True))
 
 
 def test_linear_batched_radau_is_fifth_order() -> None:
@@ -109,6 +132,16 @@ def test_fixed_step_is_validated_and_a_newton_failure_raises() -> None:
         radau5(_rhs_stages, _jac, t, X0, rtol=1e-6, atol=1e-6, fixed_step_s=0.0)
     with pytest.raises(SimInputError, match="first_step_s"):
         radau5(_rhs_stages, _jac, t, X0, rtol=1e-6, atol=1e-6, fixed_step_s=0.1, first_step_s=0.1)
+    # more stages: only at a fixed step (the error estimate is the 3-stage method's) and
+    # with the stage Jacobians; 3, 4 or 5 of them
+    for kwargs in ({}, {"fixed_step_s": 0.1, "jac_stages": None}):
+        with pytest.raises(SimInputError, match="stages"):
+            radau5(_rhs_stages, _jac, t, X0, rtol=1e-6, atol=1e-6, stages=5, **kwargs)  # type: ignore[arg-type]
+    with pytest.raises(SimInputError, match="stages"):
+        radau5(
+            _rhs_stages, _jac, t, X0, rtol=1e-6, atol=1e-6, fixed_step_s=0.1,
+            jac_stages=_jac_stages, stages=6,
+        )  # fmt: skip
 
     def poisoned(ts: np.ndarray, ys: np.ndarray) -> np.ndarray:
         return np.where(ts[:, None] < 0.45, _rhs_stages(ts, ys), np.nan)
