@@ -62,7 +62,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="region",
         help="reduced frames in the recording: 'region' (default) shows each frame whole "
         "once a second and every frame not measured, and between them only the measured "
-        "beam and hub as that frame's pixels (a third of the time); 'whole' every frame "
+        "beam and hub as that frame's pixels (about half the CPU); 'whole' every frame "
         "whole",
     )
 
