@@ -56,6 +56,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--workers", type=int, default=None, help="processes measuring frames")
     add_viewer_arguments(p)
+    p.add_argument(
+        "--frame-previews",
+        choices=("region", "whole"),
+        default="region",
+        help="reduced frames in the recording: 'region' (default) shows each frame whole "
+        "once a second and every frame not measured, and between them only the measured "
+        "beam and hub as that frame's pixels (about half the CPU); 'whole' every frame "
+        "whole",
+    )
 
 
 def check_output_folder(path: Path, option: str) -> None:
@@ -104,7 +113,9 @@ def run(args: argparse.Namespace) -> int:
 
     wanted = bool(args.rrd or args.spawn or args.connect)
     # the recording's reduced frames are made in a thread while the frames are measured
-    previews = FramePreviews(log_path, args.frame_reduction) if wanted else None
+    previews = (
+        FramePreviews(log_path, args.frame_reduction, args.frame_previews) if wanted else None
+    )
     if previews is not None and previews.reduction > 1:
         previews.start()
     try:
@@ -118,6 +129,7 @@ def run(args: argparse.Namespace) -> int:
             damping_law=args.damping_law,
             max_tip_uncertainty_m=MAX_TIP_UNCERTAINTY_M if limit_m is None else limit_m,
             fit_damping=args.fit_damping,
+            on_measured=previews.feed if previews is not None else None,
         )
         try:
             write_processed(processed, out)
@@ -164,7 +176,12 @@ def stream_to_viewer(
         raise BeambenchError(str(exc)) from None
     try:
         stream_processed(
-            processed, log_path, viewer, frame_reduction=args.frame_reduction, previews=previews
+            processed,
+            log_path,
+            viewer,
+            frame_reduction=args.frame_reduction,
+            previews=previews,
+            frame_previews=args.frame_previews,
         )
         viewer.close()
     except BaseException:

@@ -111,22 +111,26 @@ def measure_frames(
     progress: Callable[[int], None] | None = None,
     max_tip_uncertainty_m: float | None = None,
     decode_parts: bool = True,
+    on_measured: Callable[[list[MeasuredFrame]], None] | None = None,
 ) -> list[MeasuredFrame]:
     """Measure ``frames`` (objects with ``t_ns``, ``sequence``, ``data``) in order;
     ``max_tip_uncertainty_m`` (default: vision's) refuses frames whose stated tip lateral
     uncertainty exceeds it. ``decode_parts=False`` decodes every frame whole (the same
-    results, slower: the comparison ``bench process`` prints).
+    results, slower: the comparison ``bench process`` prints). ``on_measured`` is given
+    the measured frames as they come, in order (e.g. the recording's previews, made
+    while the rest are measured).
 
     ``workers`` defaults to the number of cores; 1 measures in this process. Workers are
     spawned, so a script calling this needs the usual ``if __name__ == "__main__":`` guard.
     """
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     limit = max_tip_uncertainty_m
+    done = _progress(progress, on_measured)
     items: Iterator[tuple[int, int, bytes]] = (
         (int(f.t_ns), int(f.sequence), bytes(f.data)) for f in frames
     )
     if n_workers <= 1:
-        return _measure_here(items, calibration, stations_m, method, progress, limit, decode_parts)
+        return _measure_here(items, calibration, stations_m, method, done, limit, decode_parts)
     chunks = _chunks(items)
     first = next(chunks, None)
     if first is None:
@@ -140,7 +144,7 @@ def measure_frames(
             why,
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress, limit, decode_parts)
+        return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
     # Spawned, not forked: a fork copies the threads of rerun and the log reader
     # half-way through whatever they hold, and the children can hang.
     pool = None
@@ -163,7 +167,7 @@ def measure_frames(
             exc,
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress, limit, decode_parts)
+        return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
     out: list[MeasuredFrame] = []
     # the chunks handed to the pool before its first result: measured here if no worker
     # ever answers (workers that die at start, e.g. a user who cannot execute the
@@ -174,8 +178,8 @@ def measure_frames(
         for chunk in _pooled(pool, head, chunks, in_flight=4 * n_workers, sent=unanswered):
             out.extend(chunk)
             unanswered.clear()  # answered: a later death is an error, not a fallback
-            if progress:
-                progress(len(chunk))
+            if done:
+                done(chunk)
         ok = True
     except WorkerError as exc:
         if out:
@@ -183,7 +187,7 @@ def measure_frames(
         _abandon(pool)
         log.warning("%s; measuring in this process instead", exc)
         rest = itertools.chain(*unanswered, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, progress, limit, decode_parts)
+        return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
     finally:
         if ok:
             pool.shutdown(wait=True)
@@ -204,12 +208,30 @@ def _cannot_spawn() -> str | None:
     return None
 
 
+def _progress(
+    progress: Callable[[int], None] | None,
+    on_measured: Callable[[list[MeasuredFrame]], None] | None,
+) -> Callable[[list[MeasuredFrame]], None] | None:
+    """One call per batch of measured frames: the count to ``progress``, the frames to
+    ``on_measured``."""
+    if progress is None and on_measured is None:
+        return None
+
+    def done(frames: list[MeasuredFrame]) -> None:
+        if on_measured is not None:
+            on_measured(frames)
+        if progress is not None:
+            progress(len(frames))
+
+    return done
+
+
 def _measure_here(
     items: Iterable[tuple[int, int, bytes]],
     calibration: Calibration,
     stations_m: tuple[float, ...],
     method: str,
-    progress: Callable[[int], None] | None,
+    progress: Callable[[list[MeasuredFrame]], None] | None,
     max_tip_uncertainty_m: float | None = None,
     decode_parts: bool = True,
 ) -> list[MeasuredFrame]:
@@ -219,7 +241,7 @@ def _measure_here(
     for t_ns, seq, data in items:
         out.append(MeasuredFrame(t_ns, seq, reader.measure(data)))
         if progress:
-            progress(1)
+            progress(out[-1:])
     return out
 
 

@@ -10,6 +10,7 @@ import json
 import logging
 import math
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -310,6 +311,7 @@ def process_run(
     damping_law: str | None = None,
     max_tip_uncertainty_m: float = MAX_TIP_UNCERTAINTY_M,
     fit_damping: bool = False,
+    on_measured: Callable[[list[MeasuredFrame]], None] | None = None,
 ) -> Processed:
     """Process the run in ``log_path``; ``damping_law`` (``"paper"`` | ``"material"``,
     default: the rig's ``[damping] law``) is the simulation's a1 term; ``sim_tol`` the
@@ -317,7 +319,8 @@ def process_run(
     :mod:`pipelines.process.model_error`); ``max_tip_uncertainty_m`` the stated tip
     uncertainty beyond which a frame is refused; ``fit_damping`` fits the law's
     coefficients to the run (:mod:`pipelines.process.damping_fit`) unless the run holds a
-    free decay (whose identification then wins).
+    free decay (whose identification then wins); ``on_measured`` is given the measured
+    frames as they come, in order (:func:`pipelines.process.frames.measure_frames`).
 
     The frames that were not measured are counted by reason, one warning line each, and
     a warning names the main reason and the option that would help when fewer than half
@@ -369,6 +372,7 @@ def process_run(
                 workers=workers,
                 progress=bar.update,
                 max_tip_uncertainty_m=max_tip_uncertainty_m,
+                on_measured=on_measured,
             )
         cols = as_arrays(frames, calibration)
         failures = _report_failures(log_path, frames)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +16,10 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
 from daq.log import LogError, iter_frames
+from pipelines.process.frames import MeasuredFrame
 from pipelines.process.run import Processed
 from pipelines.review.display import DIFFERENCE_GAIN
+from pipelines.review.previews import PREVIEW_MODES, RegionPreviews, region_note
 from pipelines.review.viewer import FrameOverlay, RunViewer
 from vision import FrameMeasurement, VisionError
 from vision.codec import preview
@@ -129,59 +131,108 @@ PREVIEW_BUDGET_BYTES = 256 * 1024 * 1024
 # times longer, one per call spent more CPU in Python (900 frames under load: 1.5-2.0 s
 # CPU at 16 per call, 2.4 s one by one, 3.0 s at 256)
 _FRAMES_PER_BATCH = 16
+_END = object()  # no more measurements will come
 
 
 class FramePreviews:
-    """The log's frames as the recording shows them (:func:`displayed_frame`), made in a
+    """The log's frames as the recording shows them (:class:`RegionPreviews`), made in a
     thread while the frames are measured, so the ``.rrd`` step after them only logs.
 
-    Start it before ``process_run``; :func:`stream_processed` takes what it made (a
-    preview is a reduced decode and a JPEG encode, both outside the GIL). Up to
-    :data:`PREVIEW_BUDGET_BYTES` are kept; a failure (a frame that does not decode) is
-    not raised here: that frame is reduced again, and fails, where it always did.
+    Start it before ``process_run`` and give ``process_run`` its :meth:`feed` as
+    ``on_measured``: most frames show only the measured region as that frame's
+    (``mode="region"``), so the thread follows the measurements; ``mode="whole"`` makes
+    every frame whole, ahead of them. :func:`stream_processed` takes what it made (the
+    decodes and the JPEG encodes run outside the GIL). Up to :data:`PREVIEW_BUDGET_BYTES`
+    are kept; a failure (a frame that does not decode) is not raised here: that frame
+    and the rest are made again, in order, where they always were.
     """
 
-    def __init__(self, log_path: Path, reduction: int) -> None:
+    def __init__(self, log_path: Path, reduction: int, mode: str = "region") -> None:
+        if mode not in PREVIEW_MODES:
+            raise ValueError(f"mode must be one of {PREVIEW_MODES}, got {mode!r}")
         self.log_path = Path(log_path)
         self.reduction = int(reduction)
+        self.mode = mode
+        self.composer = (
+            RegionPreviews(self.reduction, whole=mode == "whole")
+            if self.reduction in (2, 4)
+            else None
+        )
         self._made: dict[int, tuple[bytes, str, float]] = {}
         self.wall_s = 0.0  # how long the thread took
+        self.cpu_s = 0.0  # and the CPU time it used
         self._stop = threading.Event()
+        self._measured: dict[int, FrameMeasurement] = {}
+        self._fed_all = False
+        self._cond = threading.Condition()
         self._thread = threading.Thread(target=self._run, name="frame-previews", daemon=True)
 
     def start(self) -> FramePreviews:
         self._thread.start()
         return self
 
+    def feed(self, frames: Iterable[MeasuredFrame]) -> None:
+        """Measured frames, in any number at a time (``process_run``'s ``on_measured``)."""
+        if self.mode == "whole":
+            return
+        with self._cond:
+            for f in frames:
+                self._measured[f.sequence] = f.measurement
+            self._cond.notify_all()
+
+    def _measurement(self, sequence: int) -> object:
+        if self.mode == "whole":
+            return None
+        with self._cond:
+            while sequence not in self._measured:
+                if self._fed_all or self._stop.is_set():
+                    return _END
+                self._cond.wait(timeout=0.5)
+            return self._measured.pop(sequence)
+
     def _run(self) -> None:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         try:
             self._make()
         finally:
             self.wall_s = time.perf_counter() - t0
+            self.cpu_s = time.thread_time() - c0
 
     def _make(self) -> None:
+        if self.composer is None:
+            return
         size = 0
         try:
             for frame in iter_frames(self.log_path):
                 if self._stop.is_set() or size > PREVIEW_BUDGET_BYTES:
                     return
-                shown = displayed_frame(frame.data, frame.encoding, self.reduction)
+                m = self._measurement(frame.sequence)
+                if m is _END:
+                    return
+                assert m is None or isinstance(m, FrameMeasurement)
+                shown = self.composer.show(frame.data, frame.encoding, m)
                 self._made[frame.sequence] = shown
                 size += len(shown[0])
         except (VisionError, LogError, OSError, ValueError):
             return  # the frames left are reduced in stream_processed, which reports it
 
-    def stop(self) -> None:
-        """Stop making previews (the run failed, or they were used); safe to repeat."""
-        self._stop.set()
+    def _finish(self) -> None:
+        with self._cond:
+            self._fed_all = True
+            self._cond.notify_all()
         if self._thread.is_alive():
             self._thread.join()
 
-    def take(self) -> dict[int, tuple[bytes, str, float]]:
-        """Wait for the thread (if started); the previews it made, by frame sequence."""
-        if self._thread.is_alive():
-            self._thread.join()
+    def stop(self) -> None:
+        """Stop making previews (the run failed, or they were used); safe to repeat."""
+        self._stop.set()
+        self._finish()
+
+    def take(self, frames: Iterable[MeasuredFrame] = ()) -> dict[int, tuple[bytes, str, float]]:
+        """Wait for the thread (if started), given the run's measured ``frames`` (those
+        not fed already); the previews it made, by frame sequence."""
+        self.feed(frames)
+        self._finish()
         return self._made
 
 
@@ -192,16 +243,22 @@ def stream_processed(
     *,
     frame_reduction: int = 2,
     previews: FramePreviews | None = None,
+    frame_previews: str = "region",
 ) -> None:
     """Log a processed run: results series, every frame with its overlays, events.
 
     Frames go in at 1/``frame_reduction`` of their size (2 by default: a 20 s run's
-    recording loads in seconds; 1 keeps the logged frames as they are), taken from
-    ``previews`` where it made them at that size (:class:`FramePreviews`), and sent to
+    recording loads in seconds; 1 keeps the logged frames as they are), made by
+    :class:`~pipelines.review.previews.RegionPreviews` (``frame_previews`` "region": whole
+    once a second, the measured region alone between; "whole": every frame whole), taken
+    from ``previews`` where it made them that way (:class:`FramePreviews`), and sent to
     Rerun as columns, 16 frames per call.
     """
+    if frame_previews not in PREVIEW_MODES:
+        raise ValueError(f"frame_previews must be one of {PREVIEW_MODES}, got {frame_previews!r}")
     ds = processed.results
-    viewer.log_results(ds)
+    region = frame_reduction > 1 and frame_previews == "region"
+    viewer.log_results(ds, summary_note=region_note(frame_reduction) if region else "")
     sim = processed.sim
     lat = CubicSpline(sim.time_s, sim.station_lateral_m, axis=0)
     lon = CubicSpline(sim.time_s, sim.station_longitudinal_m, axis=0)
@@ -210,10 +267,18 @@ def stream_processed(
     by_seq = {f.sequence: (i, f) for i, f in enumerate(processed.frames)}
     length = processed.calibration.beam_length_m
     made: dict[int, tuple[bytes, str, float]] = {}
-    if previews is not None and previews.reduction == frame_reduction:
-        made = previews.take()
+    composer = None
+    if (
+        previews is not None
+        and previews.reduction == frame_reduction
+        and previews.mode == frame_previews
+    ):
+        made = previews.take(processed.frames)
+        composer = previews.composer  # continues where the thread stopped
     elif previews is not None:
         previews.stop()
+    if composer is None and frame_reduction > 1:
+        composer = RegionPreviews(frame_reduction, whole=frame_previews == "whole")
     times: list[float] = []
     images: list[bytes] = []
     encodings: list[str] = []
@@ -236,7 +301,10 @@ def stream_processed(
             shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
         shown = made.pop(frame.sequence, None)
         if shown is None:
-            shown = displayed_frame(frame.data, frame.encoding, frame_reduction)
+            if composer is None:
+                shown = displayed_frame(frame.data, frame.encoding, frame_reduction)
+            else:
+                shown = composer.show(frame.data, frame.encoding, measured.measurement)
         data, encoding, scale = shown
         overlay = frame_overlay(
             measured.measurement, processed.calibration.to_px, shape, length, scale=scale

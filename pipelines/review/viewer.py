@@ -775,10 +775,11 @@ class RunViewer:
             strict=True,
         )
 
-    def log_results(self, ds: xr.Dataset) -> None:
+    def log_results(self, ds: xr.Dataset, *, summary_note: str = "") -> None:
         """Everything a results Dataset holds (see ``pipelines.results.schema``), the residuals
         and Fig. 11 with its marker, and the error summary with the colour key as a markdown
-        document (all computed by :func:`pipelines.review.display.run_view`)."""
+        document (all computed by :func:`pipelines.review.display.run_view`), with
+        ``summary_note`` (how the frames are shown) as its last paragraph."""
         view = run_view(ds)
         self.log_samples(view.t_s, view.rocker_angle_rad, view.strain)
         self.log_sim(view.t_s, view.sim_tip_lateral_m, view.sim_strain)
@@ -796,7 +797,8 @@ class RunViewer:
         self.log_fig11_marker(view.frame_t_s, view.hub_at_frames_rad, view.tip_lateral_image_m)
         if bounds is not None:
             self.recording.send_blueprint(build_blueprint("processed", fig11_bounds=bounds))
-        self.log_summary(view.summary_markdown)
+        note = f"\n\n{summary_note}" if summary_note else ""
+        self.log_summary(view.summary_markdown + note)
 
 
 def _level(level: Any) -> str:

@@ -56,6 +56,22 @@ def test_workers_measure_in_order() -> None:
     assert _children("multiprocessing.spawn") == []  # the pool is gone
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_measured_frames_are_handed_on_in_order(workers: int) -> None:
+    got: list[int] = []
+    counted: list[int] = []
+    out = measure_frames(
+        _frames(23),
+        CAL,
+        stations_m=(0.2,),
+        workers=workers,
+        progress=counted.append,
+        on_measured=lambda fs: got.extend(f.sequence for f in fs),
+    )
+    assert got == [f.sequence for f in out] == list(range(23))
+    assert sum(counted) == 23
+
+
 @pytest.mark.parametrize("poll_s", [frames_module.POLL_S, 1e6])
 def test_a_worker_killed_mid_run_is_an_error(
     poll_s: float, monkeypatch: pytest.MonkeyPatch

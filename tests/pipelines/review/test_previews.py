@@ -18,6 +18,7 @@ from pipelines.process.run import process_run
 from pipelines.review.overlays import FramePreviews, stream_processed
 from pipelines.review.viewer import open_viewer
 from pipelines.rig import load_rig
+from vision.codec import preview
 
 
 def _data_rows(path: Path) -> dict[tuple[str, str], list[tuple[Any, ...]]]:
@@ -45,8 +46,10 @@ def test_previews_made_during_the_frames_give_the_same_recording(tmp_path: Path)
     log_path = tmp_path / "run.mcap"
     capture_synthetic(load_rig(), log_path, 2.0)
     previews = FramePreviews(log_path, reduction).start()
-    processed = process_run(log_path, model="modal", workers=1)
+    # the previews follow the measurements (most frames show only the measured region)
+    processed = process_run(log_path, model="modal", workers=1, on_measured=previews.feed)
     made = dict(previews.take())
+    assert previews.composer is not None and previews.composer.region_frames > 0
     frames = list(iter_frames(log_path))
     assert sorted(made) == [f.sequence for f in frames]
     image = cv2.imdecode(np.frombuffer(made[frames[0].sequence][0], np.uint8), 0)
@@ -59,9 +62,34 @@ def test_previews_made_during_the_frames_give_the_same_recording(tmp_path: Path)
     rows = _data_rows(ahead)
     assert len(rows[("/camera/image", "EncodedImage:blob")]) == len(frames)
     assert rows == _data_rows(inline)
-    # previews made at another size are not used (and the thread is stopped)
-    other = FramePreviews(log_path, 2).start()
-    again = tmp_path / "again.rrd"
-    with open_viewer("beambench-test", rrd_path=again) as viewer:
-        stream_processed(processed, log_path, viewer, frame_reduction=reduction, previews=other)
-    assert _data_rows(again) == rows
+    # previews made at another size, or made whole, are not used (and the thread is stopped)
+    for other in (FramePreviews(log_path, 2), FramePreviews(log_path, reduction, "whole")):
+        other.start()
+        again = tmp_path / "again.rrd"
+        with open_viewer("beambench-test", rrd_path=again) as viewer:
+            stream_processed(processed, log_path, viewer, frame_reduction=reduction, previews=other)
+        assert _data_rows(again) == rows
+        again.unlink()
+
+
+@pytest.mark.slow
+def test_whole_previews_are_every_frame_reduced_whole(tmp_path: Path) -> None:
+    log_path = tmp_path / "run.mcap"
+    capture_synthetic(load_rig(), log_path, 1.0)
+    previews = FramePreviews(log_path, 2, "whole").start()
+    processed = process_run(log_path, model="modal", workers=1, on_measured=previews.feed)
+    frames = list(iter_frames(log_path))
+    made = dict(previews.take())
+    assert made == {f.sequence: (preview(f.data, 2), "jpeg", 0.5) for f in frames}
+    ahead, inline = tmp_path / "ahead.rrd", tmp_path / "inline.rrd"
+    with open_viewer("beambench-test", rrd_path=ahead) as viewer:
+        stream_processed(processed, log_path, viewer, previews=previews, frame_previews="whole")
+    with open_viewer("beambench-test", rrd_path=inline) as viewer:
+        stream_processed(processed, log_path, viewer, frame_previews="whole")
+    rows = _data_rows(ahead)
+    assert rows == _data_rows(inline)
+    summary = rows[("/summary", "TextDocument:text")]
+    assert "whole" not in repr(summary)
+    with open_viewer("beambench-test", rrd_path=inline) as viewer:
+        stream_processed(processed, log_path, viewer)  # region: the summary says so
+    assert "last whole frame" in repr(_data_rows(inline)[("/summary", "TextDocument:text")])

@@ -1,0 +1,273 @@
+"""The recording's reduced frames, most of them made without decoding the whole frame.
+
+A reduced frame (:func:`vision.codec.preview`) costs a DCT-scaled decode of the whole
+JPEG (its entropy decoding is most of a full decode's time: a 1/2 decode costs about as
+much as a 1/8 one) and a JPEG encode: about 9 ms a frame, as much as measuring it. Most
+of a frame is still background. :class:`RegionPreviews` therefore makes
+
+- a **whole frame** (every pixel this frame's, exactly :func:`vision.codec.preview`'s)
+  for the first frame, then every :data:`WHOLE_EVERY_FRAMES`-th frame (one a second at 15
+  frames/s), every frame not measured, and every frame it cannot decode in parts (no
+  restart markers, PNG, another size);
+- **between them**, the last whole frame with the region of the measured beam and hub
+  (their centre lines, :data:`MARGIN_PX` beyond their edges, and the same region of the
+  last whole frame, so its beam leaves no ghost) replaced by this frame's pixels: only
+  the JPEG's restart segments under that region are decoded (:mod:`vision.jpeg_regions`,
+  at the reduced size), and of the reduced frame only the restart segments the
+  region touches are encoded again, spliced between the last whole frame's own: the
+  same bytes as encoding the whole reduced frame (tested), in a fraction of the time.
+
+The region is whole 8 x 8 blocks of the reduced image, so its pixels come out exactly as
+this frame's whole preview shows them and the rest exactly as the last whole frame's
+(tested). What lies outside the region (the registration object, anything else in view)
+is up to a second old on those frames: the recording's summary says so.
+
+``whole=True`` makes every frame whole (``--frame-previews whole``).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from vision import FrameMeasurement
+from vision.codec import encode, preview
+from vision.jpeg_regions import JpegLayout, decode_reduced, jpeg_layout, segments_of_blocks, splice
+
+#: A whole frame at least this often (frames): one a second at the bench's 15 frames/s.
+WHOLE_EVERY_FRAMES = 15
+#: The region reaches this far (full-size px) beyond the beam's and the hub's edges.
+MARGIN_PX = 48.0
+#: The preview's JPEG quality (:func:`vision.codec.preview`'s default).
+QUALITY = 85
+_BLOCK = 8
+
+PREVIEW_MODES = ("region", "whole")
+
+#: What the recording's summary says of frames made by :class:`RegionPreviews`.
+REGION_NOTE = (
+    "Frames at 1/{r} size: one a second, and every frame not measured, is shown whole; "
+    "on the frames between, only the measured beam and hub ({m:g} px about them) are "
+    "that frame's pixels, the rest is the last whole frame's "
+    "(`--frame-previews whole` shows every frame whole)."
+)
+
+
+def region_note(reduction: int) -> str:
+    return REGION_NOTE.format(r=reduction, m=MARGIN_PX)
+
+
+@dataclass
+class _Whole:
+    """The last whole frame: its reduced image (padded to whole segments), the
+    full-size blocks of its region, and its size."""
+
+    canvas: NDArray[np.uint8]
+    blocks: NDArray[np.bool_]
+    size: tuple[int, int]  # full size (width, height)
+    interval: int
+    encoded: JpegLayout | None  # its preview's segments (None: encoded whole each time)
+
+
+class RegionPreviews:
+    """Reduced frames of a run, in order (:meth:`show` keeps the last whole frame)."""
+
+    def __init__(self, reduction: int, *, whole: bool = False) -> None:
+        if reduction not in (2, 4):
+            raise ValueError(f"reduction must be 2 or 4, got {reduction!r}")
+        self.reduction = reduction
+        self.whole = bool(whole)
+        self._last: _Whole | None = None
+        self._since = 0
+        self.whole_frames = 0
+        self.region_frames = 0
+        self.region_fraction: list[float] = []
+        self.spliced_frames = 0  # region frames encoded in part (:func:`_respliced`)
+
+    def show(
+        self, data: bytes, encoding: str, m: FrameMeasurement | None
+    ) -> tuple[bytes, str, float]:
+        """The frame as the recording shows it: (JPEG bytes, "jpeg", pixel scale)."""
+        r = self.reduction
+        layout = jpeg_layout(bytes(data)) if encoding in ("jpeg", "jpg") else None
+        if layout is not None and layout.interval % r:
+            layout = None  # its segments would cut the reduced image's blocks
+        blocks = None
+        if layout is not None and m is not None and m.ok and not self.whole:
+            blocks = region_blocks(m, (layout.mcu_rows, layout.per_row * layout.interval))
+        last = self._last
+        size = (layout.width_px, layout.height_px) if layout is not None else None
+        if (
+            blocks is None
+            or last is None
+            or self._since + 1 >= WHOLE_EVERY_FRAMES
+            or last.size != size
+            or last.interval != layout.interval  # type: ignore[union-attr]
+        ):
+            return self._whole(data, layout, blocks)
+        assert layout is not None
+        region = _reduced_blocks(blocks | last.blocks, r)
+        segments = segments_of_blocks(layout, region)
+        canvas = last.canvas.copy()
+        if segments.size:
+            strip = decode_reduced(splice(layout, segments), r)
+            _paste(layout, canvas, segments, strip, r)
+        self._since += 1
+        self.region_frames += 1
+        self.region_fraction.append(segments.size / (layout.per_row * layout.mcu_rows))
+        out = None
+        if last.encoded is not None:
+            changed = _grouped(_segment_blocks(layout, segments), r)
+            out = _respliced(last.encoded, canvas, changed)
+            self.spliced_frames += out is not None
+        if out is None:
+            h, w = math.ceil(layout.height_px / r), math.ceil(layout.width_px / r)
+            out = encode(np.ascontiguousarray(canvas[:h, :w]), "jpeg", QUALITY)
+        return out, "jpeg", 1.0 / r
+
+    def _whole(
+        self, data: bytes, layout: JpegLayout | None, blocks: NDArray[np.bool_] | None
+    ) -> tuple[bytes, str, float]:
+        r = self.reduction
+        if layout is None or blocks is None:
+            # not kept as the last whole frame: its region is unknown (not measured), or
+            # it cannot be decoded in parts
+            shown = preview(bytes(data), r)
+            self.whole_frames += 1
+            return shown, "jpeg", 1.0 / r
+        image = decode_reduced(bytes(data), r)
+        self.whole_frames += 1
+        seg_w, seg_h = layout.interval * _BLOCK // r, _BLOCK // r
+        canvas = np.zeros((layout.mcu_rows * seg_h, layout.per_row * seg_w), np.uint8)
+        canvas[: image.shape[0], : image.shape[1]] = image
+        # the bytes preview() gives: the same reduced decode, encoded the same way
+        out = encode(image, "jpeg", QUALITY)
+        size = (layout.width_px, layout.height_px)
+        self._last = _Whole(canvas, blocks, size, layout.interval, jpeg_layout(out))
+        self._since = 0
+        return out, "jpeg", 1.0 / r
+
+
+def region_blocks(m: FrameMeasurement, shape: tuple[int, int]) -> NDArray[np.bool_] | None:
+    """The full-size 8 x 8 blocks ([block row, block col], ``shape``) within
+    :data:`MARGIN_PX` of the measured hub's and beam's edges (their centre lines, each
+    widened by its measured width), or None when the measurement does not place them."""
+    hub = np.asarray(m.hub_line_px, float)
+    line = np.asarray(m.centreline_px, float)
+    plane = np.asarray(m.centreline_plane_m, float)
+    if (
+        hub.shape != (2, 2)
+        or line.ndim != 2
+        or line.shape[0] < 2
+        or plane.shape != line.shape
+        or not (np.all(np.isfinite(hub)) and np.all(np.isfinite(line)))
+    ):
+        return None
+    # px per m along the centre line (no calibration needed: it holds both)
+    len_px = float(np.sum(np.hypot(*np.diff(line, axis=0).T)))
+    len_m = float(np.sum(np.hypot(*np.diff(plane, axis=0).T)))
+    if not (len_m > 0 and math.isfinite(len_px / len_m)):
+        return None
+    px_m = len_px / len_m
+    widths = {"hub": m.hub_width_m, "beam": m.beam_width_m}
+    mask = np.zeros(shape, np.uint8)
+    for name, pts in (("hub", hub), ("beam", line)):
+        w = widths[name]
+        half_px = (0.5 * w * px_m if math.isfinite(w) else 0.0) + MARGIN_PX
+        # a thick polyline with round ends, in blocks, a block of slack all round
+        thick = min(2 * math.ceil(half_px / _BLOCK) + 3, 32767)
+        blk = np.clip(pts / _BLOCK * 16.0, -(2**27), 2**27).round().astype(np.int32)
+        cv2.polylines(mask, [blk.reshape(-1, 1, 2)], False, 1, thickness=thick, shift=4)
+    return mask.astype(bool)
+
+
+def _grouped(blocks: NDArray[np.bool_], r: int) -> NDArray[np.bool_]:
+    """The blocks of the 1/``r`` image (``r`` x ``r`` full-size blocks each, from the
+    origin) holding any of the given full-size blocks."""
+    rows, cols = blocks.shape
+    pad = np.zeros((-(-rows // r) * r, -(-cols // r) * r), bool)
+    pad[:rows, :cols] = blocks
+    out = pad[::r, ::r].copy()
+    for i in range(r):
+        for j in range(r):
+            if i or j:
+                out |= pad[i::r, j::r]
+    return out
+
+
+def _reduced_blocks(blocks: NDArray[np.bool_], r: int) -> NDArray[np.bool_]:
+    """Full-size blocks grown to whole blocks of the 1/``r`` image, so no reduced block
+    mixes two frames."""
+    rows, cols = blocks.shape
+    grown = _grouped(blocks, r)
+    return np.repeat(np.repeat(grown, r, axis=0), r, axis=1)[:rows, :cols]
+
+
+def _segment_blocks(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """The full-size blocks of the given segments."""
+    hit = np.zeros(layout.mcu_rows * layout.per_row, dtype=bool)
+    hit[segments] = True
+    return np.repeat(hit.reshape(layout.mcu_rows, layout.per_row), layout.interval, axis=1)
+
+
+def _respliced(
+    whole: JpegLayout, canvas: NDArray[np.uint8], changed: NDArray[np.bool_]
+) -> bytes | None:
+    """The JPEG of ``canvas`` (reduced, padded), given the JPEG of an earlier canvas
+    (``whole``, its restart segments) that differs only in the ``changed`` blocks
+    ([block row, block col] of the reduced image): the segments holding changed blocks
+    encoded again (stacked, one segment to a row, the same tables), the others taken
+    as they were. A baseline scan's segments are independent (the DC predictions reset
+    at each restart), so this is the bytes of encoding the whole canvas; None when the
+    tables came out different (then the caller encodes the whole)."""
+    seg_w = whole.interval * _BLOCK
+    rows, cols = whole.mcu_rows, whole.per_row * whole.interval
+    if changed.shape[0] < rows or changed.shape[1] < cols:
+        return None
+    if canvas.shape[0] < rows * _BLOCK or canvas.shape[1] < cols * _BLOCK:
+        return None
+    redo = segments_of_blocks(whole, changed[:rows, :cols])
+    if redo.size == 0:
+        return whole.data
+    grid = canvas[: rows * _BLOCK, : cols * _BLOCK].reshape(rows, _BLOCK, whole.per_row, seg_w)
+    stack = np.ascontiguousarray(
+        grid.transpose(0, 2, 1, 3)[redo // whole.per_row, redo % whole.per_row].reshape(-1, seg_w)
+    )
+    new = jpeg_layout(encode(stack, "jpeg", QUALITY, restart_interval_mcu=whole.interval))
+    if new is None or new.starts.size != redo.size:
+        return None
+    head = bytearray(whole.header)
+    struct.pack_into(">HH", head, whole.sof_size_at, stack.shape[0], seg_w)
+    if bytes(head) != new.header:
+        return None
+    # the changed segments' bytes replaced, everything between them (the unchanged
+    # segments and every restart marker, whose numbers stay) kept as it was
+    old_data, new_data = memoryview(whole.data), memoryview(new.data)
+    parts: list[memoryview] = []
+    at = 0
+    for j, i in enumerate(redo.tolist()):
+        parts.append(old_data[at : whole.starts_list[i]])
+        parts.append(new_data[new.starts_list[j] : new.ends_list[j]])
+        at = whole.ends_list[i]
+    parts.append(old_data[at:])
+    return b"".join(parts)
+
+
+def _paste(
+    layout: JpegLayout,
+    canvas: NDArray[np.uint8],
+    segments: NDArray[np.intp],
+    strip: NDArray[np.uint8],
+    r: int,
+) -> None:
+    """Put the reduced decode of spliced segments in their place in a reduced canvas."""
+    seg_w, seg_h = layout.interval * _BLOCK // r, _BLOCK // r
+    grid = canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
+    grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
+        len(segments), seg_h, seg_w
+    )
