@@ -59,11 +59,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--frame-previews",
         choices=("region", "whole"),
-        default="region",
-        help="reduced frames in the recording: 'region' (default) shows each frame whole "
-        "once a second and every frame not measured, and between them only the measured "
-        "beam and hub as that frame's pixels (about half the CPU); 'whole' every frame "
-        "whole",
+        default="whole",
+        help="reduced frames in the recording: 'whole' (default) every frame as the camera "
+        "took it; 'region' each frame whole once a second and every frame not measured, "
+        "and between them only the measured beam and hub as that frame's pixels over the "
+        "last whole frame (about half the previews' CPU)",
     )
 
 

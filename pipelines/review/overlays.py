@@ -147,7 +147,7 @@ class FramePreviews:
     and the rest are made again, in order, where they always were.
     """
 
-    def __init__(self, log_path: Path, reduction: int, mode: str = "region") -> None:
+    def __init__(self, log_path: Path, reduction: int, mode: str = "whole") -> None:
         if mode not in PREVIEW_MODES:
             raise ValueError(f"mode must be one of {PREVIEW_MODES}, got {mode!r}")
         self.log_path = Path(log_path)
@@ -243,7 +243,7 @@ def stream_processed(
     *,
     frame_reduction: int = 2,
     previews: FramePreviews | None = None,
-    frame_previews: str = "region",
+    frame_previews: str = "whole",
 ) -> None:
     """Log a processed run: results series, every frame with its overlays, events.
 

@@ -45,7 +45,7 @@ def test_previews_made_during_the_frames_give_the_same_recording(tmp_path: Path)
     reduction = 4  # not the default 2
     log_path = tmp_path / "run.mcap"
     capture_synthetic(load_rig(), log_path, 2.0)
-    previews = FramePreviews(log_path, reduction).start()
+    previews = FramePreviews(log_path, reduction, "region").start()
     # the previews follow the measurements (most frames show only the measured region)
     processed = process_run(log_path, model="modal", workers=1, on_measured=previews.feed)
     made = dict(previews.take())
@@ -56,18 +56,37 @@ def test_previews_made_during_the_frames_give_the_same_recording(tmp_path: Path)
     assert image.shape == (frames[0].height_px // reduction, frames[0].width_px // reduction)
     ahead, inline = tmp_path / "ahead.rrd", tmp_path / "inline.rrd"
     with open_viewer("beambench-test", rrd_path=ahead) as viewer:
-        stream_processed(processed, log_path, viewer, frame_reduction=reduction, previews=previews)
+        stream_processed(
+            processed,
+            log_path,
+            viewer,
+            frame_reduction=reduction,
+            previews=previews,
+            frame_previews="region",
+        )
     with open_viewer("beambench-test", rrd_path=inline) as viewer:
-        stream_processed(processed, log_path, viewer, frame_reduction=reduction)
+        stream_processed(
+            processed, log_path, viewer, frame_reduction=reduction, frame_previews="region"
+        )
     rows = _data_rows(ahead)
     assert len(rows[("/camera/image", "EncodedImage:blob")]) == len(frames)
     assert rows == _data_rows(inline)
     # previews made at another size, or made whole, are not used (and the thread is stopped)
-    for other in (FramePreviews(log_path, 2), FramePreviews(log_path, reduction, "whole")):
+    for other in (
+        FramePreviews(log_path, 2, "region"),
+        FramePreviews(log_path, reduction, "whole"),
+    ):
         other.start()
         again = tmp_path / "again.rrd"
         with open_viewer("beambench-test", rrd_path=again) as viewer:
-            stream_processed(processed, log_path, viewer, frame_reduction=reduction, previews=other)
+            stream_processed(
+                processed,
+                log_path,
+                viewer,
+                frame_reduction=reduction,
+                previews=other,
+                frame_previews="region",
+            )
         assert _data_rows(again) == rows
         again.unlink()
 
@@ -91,5 +110,8 @@ def test_whole_previews_are_every_frame_reduced_whole(tmp_path: Path) -> None:
     summary = rows[("/summary", "TextDocument:text")]
     assert "whole" not in repr(summary)
     with open_viewer("beambench-test", rrd_path=inline) as viewer:
-        stream_processed(processed, log_path, viewer)  # region: the summary says so
+        stream_processed(processed, log_path, viewer)  # the default: every frame whole
+    assert _data_rows(inline) == rows
+    with open_viewer("beambench-test", rrd_path=inline) as viewer:
+        stream_processed(processed, log_path, viewer, frame_previews="region")  # says so
     assert "last whole frame" in repr(_data_rows(inline)[("/summary", "TextDocument:text")])
