@@ -158,7 +158,8 @@ class RegionReader:
                     return None
                 done |= _segment_blocks(layout, new, shape)
                 self.stats.regrown += attempt
-            m = self.measurer.measure(image_of(layout, canvas))
+            # the crossings read the circles' blocks only, decoded first: as found
+            m = self.measurer.measure(image_of(layout, canvas), crossings_m=found)
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, shape)
