@@ -138,7 +138,7 @@ class RegionReader:
             return None
         # The background's level: the circles' median sample (the beam covers a few % of
         # them); what is not decoded is that constant.
-        level = int(np.median(strip[::2, ::4]))
+        level = int(_median_u8(strip[::2, ::4]))
         canvas = blank_canvas(layout, level)
         paste(layout, canvas, ring_segs, strip)
         image = image_of(layout, canvas)
@@ -146,8 +146,9 @@ class RegionReader:
         if found is None:
             return None
         p1, p2 = found
-        done = np.zeros(shape, dtype=bool)
-        done |= ring
+        # the circles' segments were decoded whole: none of their blocks again
+        done = _segment_blocks(layout, ring_segs, shape)
+        done_segs = ring_segs
         want = self._predicted(p1, p2, shape)
         for attempt in range(2):
             new = segments_of_blocks(layout, want & ~done)
@@ -157,6 +158,7 @@ class RegionReader:
                 except ValueError:
                     return None
                 done |= _segment_blocks(layout, new, shape)
+                done_segs = np.union1d(done_segs, new)
                 self.stats.regrown += attempt
             # the crossings read the circles' blocks only, decoded first: as found
             m = self.measurer.measure(image_of(layout, canvas), crossings_m=found)
@@ -165,9 +167,7 @@ class RegionReader:
             read = self._read(m, p1, p2, shape)
             if not np.any(read & ~done):
                 total = layout.per_row * layout.mcu_rows
-                self.stats.decoded_fraction.append(
-                    float(segments_of_blocks(layout, done).size) / total
-                )
+                self.stats.decoded_fraction.append(float(done_segs.size) / total)
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
             # behind the pivot (a hub cut short by what was not decoded reads farther
@@ -339,6 +339,15 @@ class RegionReader:
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
     n = float(np.hypot(v[0], v[1]))
     return v / n if n > 0 else np.array([1.0, 0.0])
+
+
+def _median_u8(values: NDArray[np.uint8]) -> float:
+    """``np.median`` of 8-bit values, from their histogram (a partition of tens of
+    thousands of values costs several times more)."""
+    cum = np.cumsum(np.bincount(values.ravel(), minlength=256))
+    n = int(cum[-1])
+    lo, hi = np.searchsorted(cum, [(n - 1) // 2, n // 2], side="right")
+    return 0.5 * (float(lo) + float(hi))
 
 
 def _segment_blocks(
