@@ -96,6 +96,31 @@ def frame_sensitivity(
     ``shape`` (one of :data:`SHAPES`), or None for a frame without a measurement."""
     if shape not in SHAPES:
         raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
+    geo = _frame_geometry(cal, m)
+    return None if geo is None else _sensitivity(geo, shape)
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """What :func:`frame_sensitivity` takes from a frame whatever the shape: the beam's
+    points' axis coordinates ``a`` (m from the clamp), the axis turn's column of the beam
+    and the hub rows, the points' moves per homography element across the axis, and
+    the tip's and the clamp's sensitivity pieces."""
+
+    a: NDArray[np.float64]
+    a_tip: float
+    length_m: float
+    turn_beam: NDArray[np.float64]
+    hub_s: NDArray[np.float64] | None
+    jac: NDArray[np.float64]
+    n: NDArray[np.float64]
+    e: NDArray[np.float64]
+    tip: NDArray[np.float64]
+    p_tip: NDArray[np.float64]
+    p_clamp: NDArray[np.float64]
+
+
+def _frame_geometry(cal: Calibration, m: FrameMeasurement) -> _Geometry | None:
     if not m.ok or m.centreline_plane_m.shape[0] < 3:
         return None
     theta = float(m.hub_angle_rad)
@@ -112,27 +137,39 @@ def frame_sensitivity(
     b = np.interp(a, a_line, b_line)
     slope = np.gradient(b, a)
     beam = clamp + a[:, None] * e + b[:, None] * n
-    basis = _shape_basis(a, a_tip, cal.beam_length_m, shape)
-    n_shape = basis.shape[1]
-    rows_beam = np.column_stack([d_clamp + a, np.zeros(len(a)), basis])
     across = n[None, :] - slope[:, None] * e[None, :]  # (K, 2)
     jac_beam = np.einsum("ki,kij->kj", across, plane_jacobian(cal, beam))
-    rows, jacs = [rows_beam], [jac_beam]
+    jacs = [jac_beam]
+    hub_s = None
     back = _hub_back_m(cal, m, e)
     if back is not None:
         s0, s1 = back + _HUB_MARGIN_M, d_clamp - _HUB_MARGIN_M
         if s1 > s0:
             k = max(2, round(_N_POINTS * (s1 - s0) / a_tip))
-            s = np.linspace(s0, s1, k)
-            hub = s[:, None] * e
-            rows.append(np.column_stack([s, np.ones(k), np.zeros((k, n_shape))]))
+            hub_s = np.linspace(s0, s1, k)
+            hub = hub_s[:, None] * e
             jacs.append(np.einsum("i,kij->kj", n, plane_jacobian(cal, hub)))
+    p_tip, p_clamp = plane_jacobian(cal, np.vstack([tip, clamp]))
+    return _Geometry(
+        a, a_tip, cal.beam_length_m, d_clamp + a, hub_s, np.vstack(jacs), n, e, tip, p_tip, p_clamp
+    )
+
+
+def _sensitivity(geo: _Geometry, shape: str) -> NDArray[np.float64]:
+    """:func:`frame_sensitivity` from the frame's geometry."""
+    a = geo.a
+    basis = _shape_basis(a, geo.a_tip, geo.length_m, shape)
+    n_shape = basis.shape[1]
+    rows = [np.column_stack([geo.turn_beam, np.zeros(len(a)), basis])]
+    if geo.hub_s is not None:
+        k = len(geo.hub_s)
+        rows.append(np.column_stack([geo.hub_s, np.ones(k), np.zeros((k, n_shape))]))
     a_mat = np.vstack(rows)
     weights = np.linalg.pinv(a_mat)[0]  # the axis turn from the points' moves
-    g_hub = weights @ np.vstack(jacs)
-    p_tip, p_clamp = plane_jacobian(cal, np.vstack([tip, clamp]))
-    g_lat = n @ p_tip - float(tip @ e) * g_hub
-    g_lon = e @ (p_tip - p_clamp) + float(tip @ n) * g_hub
+    g_hub = weights @ geo.jac
+    e, n, tip = geo.e, geo.n, geo.tip
+    g_lat = n @ geo.p_tip - float(tip @ e) * g_hub
+    g_lon = e @ (geo.p_tip - geo.p_clamp) + float(tip @ n) * g_hub
     return np.vstack([g_hub, g_lat, g_lon])
 
 
@@ -166,11 +203,12 @@ def frame_calibration_sd(cal: Calibration, m: FrameMeasurement) -> CalibrationSd
         return CalibrationSd(math.nan, math.nan, math.nan)
     if cal.plane_from_ideal_cov is None:
         return NO_CALIBRATION_SD
+    geo = _frame_geometry(cal, m)  # the frame's, once for both shapes
+    if geo is None:
+        return CalibrationSd(math.nan, math.nan, math.nan)
     sd = np.zeros(3)
     for shape in SHAPES:  # whichever the measurer took: the larger
-        g = frame_sensitivity(cal, m, shape)
-        if g is None:
-            return CalibrationSd(math.nan, math.nan, math.nan)
+        g = _sensitivity(geo, shape)
         var = np.einsum("ik,kl,il->i", g, cal.plane_from_ideal_cov, g)
         sd = np.maximum(sd, np.sqrt(np.maximum(var, 0.0)))
     return CalibrationSd(float(sd[0]), float(sd[1]), float(sd[2]))

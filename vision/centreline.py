@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.polynomial import Legendre, Polynomial
@@ -83,6 +83,23 @@ def cantilever_eigenvalues(n_modes: int) -> tuple[float, ...]:
     return tuple(out)
 
 
+@lru_cache(maxsize=8)
+def _mode_constants(n_modes: int) -> tuple[NDArray[np.float64], ...]:
+    """``beta``, ``sigma`` and ``(1 - sigma) e^beta`` of the first ``n_modes`` modes, as
+    :func:`cantilever_modes_t` uses them (read-only arrays)."""
+    beta, sigma, big = [], [], []
+    for b in cantilever_eigenvalues(n_modes):
+        den = math.sinh(b) + math.sin(b)
+        beta.append(b)
+        sigma.append((math.cosh(b) + math.cos(b)) / den)
+        one_minus = (math.sin(b) - math.cos(b) - math.exp(-b)) / den  # 1 - sigma
+        big.append(one_minus * math.exp(b))
+    out = tuple(np.array(v) for v in (beta, sigma, big))
+    for v in out:
+        v.setflags(write=False)
+    return out
+
+
 def cantilever_modes_t(
     x: NDArray[np.float64], n_modes: int, derivative: int = 0
 ) -> NDArray[np.float64]:
@@ -91,25 +108,35 @@ def cantilever_modes_t(
     ``cosh(bx) - cos(bx) - sigma (sinh(bx) - sin(bx))``, its growing and decaying
     exponentials taken apart so the higher modes keep their digits."""
     x = np.asarray(x, dtype=np.float64)
-    out = np.empty((n_modes, len(x)))
-    for k, beta in enumerate(cantilever_eigenvalues(n_modes)):
-        den = math.sinh(beta) + math.sin(beta)
-        sigma = (math.cosh(beta) + math.cos(beta)) / den
-        one_minus = (math.sin(beta) - math.cos(beta) - math.exp(-beta)) / den  # 1 - sigma
-        bx = beta * x
-        grow = np.exp(bx - beta)  # scaled by e^-beta: only (1 - sigma) e^beta is large
-        decay = np.exp(-bx)
-        big = one_minus * math.exp(beta)
-        if derivative == 0:
-            # cosh - sigma sinh = ((1 - sigma) e^bx + (1 + sigma) e^-bx) / 2
-            out[k] = 0.5 * (big * grow + (1 + sigma) * decay) - np.cos(bx) + sigma * np.sin(bx)
-        elif derivative == 1:
-            out[k] = beta * (
-                0.5 * (big * grow - (1 + sigma) * decay) + np.sin(bx) + sigma * np.cos(bx)
-            )
-        else:
-            raise ValueError(f"derivative must be 0 or 1, got {derivative}")
+    if derivative not in (0, 1):
+        raise ValueError(f"derivative must be 0 or 1, got {derivative}")
+    beta, sigma, big = _mode_constants(n_modes)
+    # All modes in one pass of array operations (each element as the per-mode
+    # formula computes it, so the same values).
+    bx = beta[:, None] * x[None, :]
+    grow = np.exp(bx - beta[:, None])  # scaled by e^-beta: only (1 - sigma) e^beta is large
+    decay = np.exp(-bx)
+    b_, s_ = big[:, None], sigma[:, None]
+    if derivative == 0:
+        # cosh - sigma sinh = ((1 - sigma) e^bx + (1 + sigma) e^-bx) / 2
+        out = 0.5 * (b_ * grow + (1 + s_) * decay) - np.cos(bx) + s_ * np.sin(bx)
+    else:
+        out = beta[:, None] * (0.5 * (b_ * grow - (1 + s_) * decay) + np.sin(bx) + s_ * np.cos(bx))
     return out
+
+
+@lru_cache(maxsize=16)
+def _slope_modes(
+    n_modes: int, beam_length: float, s_end: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The arc lengths ``s`` (m) a :class:`ModalCentreLine` is tabulated at, 0 ..
+    ``s_end``, and the modes' slopes ``phi_k'(s / L)`` there (read-only): the same for
+    every frame of a beam whose edges end short of its length."""
+    s = np.linspace(0.0, s_end, ModalCentreLine._N)
+    modes = cantilever_modes_t(s / beam_length, n_modes, 1)
+    s.setflags(write=False)
+    modes.setflags(write=False)
+    return s, modes
 
 
 class ModalCentreLine:
@@ -126,17 +153,43 @@ class ModalCentreLine:
         self.coef = np.asarray(coef, dtype=np.float64)
         self.beam_length = float(beam_length)
         self.amax = float(amax)
-        s = np.linspace(0.0, 1.1 * max(amax, beam_length), self._N)
-        th = (self.coef @ cantilever_modes_t(s / self.beam_length, len(self.coef), 1)) / (
-            self.beam_length
+
+    @cached_property
+    def _tables(self) -> tuple[NDArray[np.float64], ...]:
+        # Tabulated at first use: a modal fit that its shape test refuses is never read.
+        s, modes = _slope_modes(
+            len(self.coef), self.beam_length, 1.1 * max(self.amax, self.beam_length)
         )
+        th = (self.coef @ modes) / self.beam_length
         ds = np.diff(s)
         c, sn = np.cos(th), np.sin(th)
         a = np.concatenate([[0.0], np.cumsum(0.5 * (c[1:] + c[:-1]) * ds)])
         b = np.concatenate([[0.0], np.cumsum(0.5 * (sn[1:] + sn[:-1]) * ds)])
-        self._s, self._a, self._b, self._slope = s, a, b, np.tan(th)
-        self._b_end = float(np.interp(self.amax, a, b))
-        self._d_end = float(np.interp(self.amax, a, self._slope))
+        return s, a, b, np.tan(th)
+
+    @property
+    def _s(self) -> NDArray[np.float64]:
+        return self._tables[0]
+
+    @property
+    def _a(self) -> NDArray[np.float64]:
+        return self._tables[1]
+
+    @property
+    def _b(self) -> NDArray[np.float64]:
+        return self._tables[2]
+
+    @property
+    def _slope(self) -> NDArray[np.float64]:
+        return self._tables[3]
+
+    @cached_property
+    def _b_end(self) -> float:
+        return float(np.interp(self.amax, self._a, self._b))
+
+    @cached_property
+    def _d_end(self) -> float:
+        return float(np.interp(self.amax, self._a, self._slope))
 
     def s_of_a(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         """Arc length from the clamp of the point at axis coordinate ``a``."""
@@ -390,27 +443,32 @@ def fit_centreline(
 
 
 def _orthonormal_rows(x: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.float64], int]:
-    """Orthonormal rows spanning the rows of ``x`` (K, N), in order, by modified
-    Gram-Schmidt run twice (orthogonal to rounding however near the rows lie; in numpy
-    on a few long rows, where LAPACK's threaded QR stalls on a busy host). A row with
+    """Orthonormal rows spanning the rows of ``x`` (K, N), in order, by Gram-Schmidt run
+    twice (orthogonal to rounding however near the rows lie; in numpy on a few long rows,
+    where LAPACK's threaded QR stalls on a busy host). A row with
     less than 1e-9 of its norm left is dropped; also how many of the first ``n_first``
     rows were kept."""
-    out: list[NDArray[np.float64]] = []
+    rows = np.array(x, dtype=np.float64)
+    q = np.empty_like(rows)
+    k = 0
     kept_first = 0
-    for i, row in enumerate(x):
-        v = np.array(row, dtype=np.float64)
+    for i in range(len(rows)):
+        v = rows[i]
         norm0 = float(np.sqrt(v @ v))
         if norm0 == 0.0:
             continue
+        # Against all kept rows at once, twice (classical Gram-Schmidt, reorthogonalised:
+        # as orthogonal as the modified form run twice, in two products per pass).
         for _ in range(2):
-            for qv in out:
-                v -= (qv @ v) * qv
+            if k:
+                v -= (q[:k] @ v) @ q[:k]
         norm = float(np.sqrt(v @ v))
         if norm <= 1e-9 * norm0:
             continue
-        out.append(v / norm)
+        q[k] = v / norm
+        k += 1
         kept_first += i < n_first
-    return np.array(out), kept_first
+    return q[:k], kept_first
 
 
 def _wlstsq(a_t: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray:

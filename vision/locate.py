@@ -256,12 +256,15 @@ def locate(
     beam_width: float,
     px_m: float,
     circles: SearchCircles | None = None,
+    found: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> Rough:
     """Find the beam around the pivot and follow it to the tip and back over the hub.
-    ``circles``: :func:`search_circles` of this placement, when already mapped."""
+    ``circles``: :func:`search_circles` of this placement, when already mapped;
+    ``found``: :func:`crossings` of this image on them, when already found."""
     if circles is None:
         circles = search_circles(to_px, beam_length, beam_width, px_m)
-    found = crossings(image, circles, beam_width)
+    if found is None:
+        found = crossings(image, circles, beam_width)
     if found is None:
         raise FrameFailure("no beam found (no bright strip of the beam's width about the pivot)")
     p1, p2 = found

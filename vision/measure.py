@@ -171,8 +171,16 @@ class Measurer:
         )
 
     # -- entry point --------------------------------------------------------------------
-    def measure(self, image_gray: NDArray[np.uint8]) -> FrameMeasurement:
-        """Measure one uint8 gray [row, col] frame; never raises for a bad frame."""
+    def measure(
+        self,
+        image_gray: NDArray[np.uint8],
+        *,
+        crossings_m: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    ) -> FrameMeasurement:
+        """Measure one uint8 gray [row, col] frame; never raises for a bad frame.
+        ``crossings_m``: where the beam crosses the search circles in this frame
+        (:func:`vision.locate.crossings` on this placement's circles), when the caller
+        has found them already (default method)."""
         if not isinstance(image_gray, np.ndarray):
             raise TypeError(f"image_gray must be a numpy array, got {type(image_gray).__name__}")
         if image_gray.ndim != 2 or image_gray.dtype != np.uint8 or min(image_gray.shape) < 16:
@@ -184,7 +192,7 @@ class Measurer:
                 return measure_paper(
                     self.calibration, image_gray, stations_m=self.stations_m, resolution_m=self.px_m
                 )
-            return self._measure_default(image_gray)
+            return self._measure_default(image_gray, crossings_m)
         except FrameFailure as exc:
             return self._fail(exc.reason)
         except (ValueError, np.linalg.LinAlgError, IndexError, FloatingPointError) as exc:
@@ -202,10 +210,14 @@ class Measurer:
         )
 
     # -- the default method ---------------------------------------------------------------
-    def _measure_default(self, image: NDArray[np.uint8]) -> FrameMeasurement:
+    def _measure_default(
+        self,
+        image: NDArray[np.uint8],
+        crossings_m: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    ) -> FrameMeasurement:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
-        rough = locate(image, cal.to_px, length, w_beam, self.px_m, self._circles)
+        rough = locate(image, cal.to_px, length, w_beam, self.px_m, self._circles, crossings_m)
         # The hub's axis, first through the rough centres of its cross-profiles: enough
         # to place the searches for its end faces, whose lines lie symmetrically about it.
         e, n, axis_b = rough_axis(rough)

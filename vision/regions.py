@@ -138,7 +138,7 @@ class RegionReader:
             return None
         # The background's level: the circles' median sample (the beam covers a few % of
         # them); what is not decoded is that constant.
-        level = int(np.median(strip[::2, ::4]))
+        level = int(_median_u8(strip[::2, ::4]))
         canvas = blank_canvas(layout, level)
         paste(layout, canvas, ring_segs, strip)
         image = image_of(layout, canvas)
@@ -146,27 +146,27 @@ class RegionReader:
         if found is None:
             return None
         p1, p2 = found
-        done = np.zeros(shape, dtype=bool)
-        done |= ring
+        # What was decoded, by segment (whole segments are decoded, the circles' first:
+        # none of them again where the band overlaps them).
+        done = np.zeros(layout.per_row * layout.mcu_rows, dtype=bool)
+        done[ring_segs] = True
         want = self._predicted(p1, p2, shape)
         for attempt in range(2):
-            new = segments_of_blocks(layout, want & ~done)
+            new = np.flatnonzero(_segment_hit(layout, want) & ~done)
             if new.size:
                 try:
                     paste(layout, canvas, new, decode_segments(layout, new))
                 except ValueError:
                     return None
-                done |= _segment_blocks(layout, new, shape)
+                done[new] = True
                 self.stats.regrown += attempt
-            m = self.measurer.measure(image_of(layout, canvas))
+            # the crossings read the circles' blocks only, decoded first: as found
+            m = self.measurer.measure(image_of(layout, canvas), crossings_m=found)
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, shape)
-            if not np.any(read & ~done):
-                total = layout.per_row * layout.mcu_rows
-                self.stats.decoded_fraction.append(
-                    float(segments_of_blocks(layout, done).size) / total
-                )
+            if not np.any(_segment_hit(layout, read) & ~done):
+                self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
             # behind the pivot (a hub cut short by what was not decoded reads farther
@@ -304,7 +304,10 @@ class RegionReader:
                 continue
             sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
             pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
-            t = np.gradient(pts, axis=0)
+            # np.gradient's differences (unit spacing), without its generic overhead
+            t = np.empty_like(pts)
+            t[1:-1] = (pts[2:] - pts[:-2]) / 2.0
+            t[0], t[-1] = pts[1] - pts[0], pts[-1] - pts[-2]
             t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
             pts[0] -= half_m * t[0]
             pts[-1] += half_m * t[-1]
@@ -332,7 +335,7 @@ class RegionReader:
             thick = min(2 * math.ceil(half_px / _BLOCK_PX) + 3, 32767)
             blk = np.clip(centre / _BLOCK_PX * 16.0, -(2**27), 2**27).round().astype(np.int32)
             cv2.polylines(mask, [blk.reshape(-1, 1, 2)], False, 1, thickness=thick, shift=4)
-        return mask.astype(bool)
+        return mask.view(bool)  # 0 and 1
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -340,10 +343,17 @@ def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return v / n if n > 0 else np.array([1.0, 0.0])
 
 
-def _segment_blocks(
-    layout: JpegLayout, segments: NDArray[np.intp], shape: tuple[int, int]
-) -> NDArray[np.bool_]:
-    """The blocks of the given segments."""
-    hit = np.zeros(layout.mcu_rows * layout.per_row, dtype=bool)
-    hit[segments] = True
-    return np.repeat(hit.reshape(layout.mcu_rows, layout.per_row), layout.interval, axis=1)
+def _median_u8(values: NDArray[np.uint8]) -> float:
+    """``np.median`` of 8-bit values, from their histogram (a partition of tens of
+    thousands of values costs several times more)."""
+    cum = np.cumsum(np.bincount(values.ravel(), minlength=256))
+    n = int(cum[-1])
+    lo, hi = np.searchsorted(cum, [(n - 1) // 2, n // 2], side="right")
+    return 0.5 * (float(lo) + float(hi))
+
+
+def _segment_hit(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Per segment (raster order), whether it holds any True block of a [block row,
+    block col] mask."""
+    per_seg = blocks.reshape(layout.mcu_rows * layout.per_row, layout.interval)
+    return np.asarray(per_seg.any(axis=1))

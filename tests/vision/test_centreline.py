@@ -331,3 +331,27 @@ def test_a_steep_beams_edges_are_its_centre_line_offset_along_the_normal() -> No
     a = np.linspace(0.05, 0.81, 20)
     np.testing.assert_allclose(steep.fit.centre(a), b_of_a(a), atol=3e-6)
     assert abs(steep.fit.width - W_M) < 1e-6
+
+
+def test_orthonormal_rows_span_the_rows_in_order_against_numpy_qr() -> None:
+    """The modal fit's shape test projects on orthonormal rows: checked against LAPACK's
+    QR (an independent code) on rows unlike the fit's (random, one nearly and one
+    exactly dependent), the dependent one dropped and the first rows counted."""
+    from vision.centreline import _orthonormal_rows
+
+    rng = np.random.default_rng(41)
+    x = rng.standard_normal((9, 1300))
+    x[3] = x[1] + 1e-6 * rng.standard_normal(1300)  # nearly dependent: kept
+    x[6] = 2.0 * x[0] - x[2]  # dependent: dropped
+    q, n_first = _orthonormal_rows(x, 4)
+    assert q.shape == (8, 1300) and n_first == 4
+    np.testing.assert_allclose(q @ q.T, np.eye(8), atol=1e-13)
+    # Row k of q spans what rows 0..k add, in order: the same as QR's columns up to sign.
+    kept = np.delete(x, 6, axis=0)
+    ref, r = np.linalg.qr(kept.T)
+    sign = np.sign(np.diag(r))
+    np.testing.assert_allclose(q, (ref * sign).T, atol=1e-9)
+    # Every row of x lies in their span.
+    np.testing.assert_allclose((x @ q.T) @ q, x, atol=1e-10 * np.abs(x).max())
+    q0, n0 = _orthonormal_rows(np.zeros((2, 5)), 2)
+    assert q0.shape[0] == 0 and n0 == 0

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from vision import Measurer
-from vision.locate import find_strip, locate, profile_levels, search_circles
+from vision.errors import FrameFailure
+from vision.locate import crossings, find_strip, locate, profile_levels, search_circles
 from vision.synthetic.render import render_frame
 
 
@@ -27,6 +29,32 @@ def test_premapped_search_circles_change_nothing_and_hub_centres_lie_on_its_axis
     assert len(a.hub) >= 2
     across = a.hub[:, 0] * math.sin(th) - a.hub[:, 1] * math.cos(th)
     assert np.max(np.abs(across)) < 0.5e-3
+
+
+def test_crossings_found_by_the_caller_are_used_as_found(nominal_spec, vt) -> None:
+    """A caller that has found the circles' crossings (the region reader) hands them
+    on: the same rough location and measurement as finding them again, and a different
+    pair is taken as given, not searched for again."""
+    frame = render_frame(nominal_spec, [vt.bent(math.radians(290), -0.03)])
+    m = Measurer(vt.truth_calibration(frame.truth))
+    circles = search_circles(m.calibration.to_px, vt.L_M, vt.W_M, m.px_m)
+    found = crossings(frame.image, circles, vt.W_M)
+    assert found is not None
+    args = (frame.image, m.calibration.to_px, vt.L_M, vt.W_M, m.px_m, circles)
+    a, b = locate(*args), locate(*args, found=found)
+    for name in ("beam", "clamp", "hub_back", "hub_width", "tip", "hub"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    r0, r1 = m.measure(frame.image), m.measure(frame.image, crossings_m=found)
+    assert r0.ok and r1.ok
+    assert (r0.hub_angle_rad, r0.tip_lateral_m) == (r1.hub_angle_rad, r1.tip_lateral_m)
+    # 90 deg off the beam: nothing to follow there, and the frame is not measured
+    turned = (
+        np.array([[0.0, -1.0], [1.0, 0.0]]) @ found[0],
+        np.array([[0.0, -1.0], [1.0, 0.0]]) @ found[1],
+    )
+    with pytest.raises(FrameFailure):
+        locate(*args, found=turned)
+    assert not m.measure(frame.image, crossings_m=turned).ok
 
 
 def test_find_strip_with_precomputed_levels_is_the_same() -> None:
