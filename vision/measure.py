@@ -206,6 +206,7 @@ class Measurer:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
         rough = locate(image, cal.to_px, length, w_beam, self.px_m, self._circles)
+        w_beam = rough.beam_width  # the width the image shows (the calibration's: a hint)
         # The hub's axis, first through the rough centres of its cross-profiles: enough
         # to place the searches for its end faces, whose lines lie symmetrically about it.
         e, n, axis_b = rough_axis(rough)
@@ -305,8 +306,8 @@ class Measurer:
         centre, rms, width = fit.centre, fit.rms, fit.width
         if abs(width - w_beam) > 0.15 * w_beam:
             raise FrameFailure(
-                f"beam width {width * 1e3:.1f} mm in the image disagrees with the "
-                f"calibration's {w_beam * 1e3:.1f} mm"
+                f"beam width {width * 1e3:.1f} mm from its edges disagrees with the "
+                f"{w_beam * 1e3:.1f} mm of its cross-profiles"
             )
         # A beam is a smooth curve: the edges' residuals from its fitted shape are the
         # image noise, correlated from one scan line to the next only through the
