@@ -34,10 +34,11 @@ ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 #: circles' samples, is never taken (:func:`strip_widths`).
 MIN_STRIP_WIDTH_M = 1.5e-3
 MAX_STRIP_WIDTH_M = 0.04
-#: The inward follow's cross-profiles reach at least this far either side (m): a hub is
-#: found where the strip widens, whatever the beam's width, up to about twice this wide
-#: (the profile's background level is its 20th percentile).
-HUB_SEARCH_HALF_M = 0.05
+#: The follow's cross-profiles reach at least this far either side (m), whatever the
+#: beam's width: a bent beam leaves the chord through its crossings of the search
+#: circles by centimetres toward its tip, and a hub is found where the strip widens up
+#: to about twice this wide (the profile's background level is its 20th percentile).
+FOLLOW_HALF_M = 0.05
 #: The hub begins where the strip, followed toward the pivot, is this much wider.
 _HUB_WIDENING = 1.35
 #: Cross-profiles reach this many beam widths either side of the followed strip.
@@ -104,11 +105,10 @@ def outward_width(shown: float, hint: float) -> float:
     return hint if 0.55 * hint <= shown <= 1.7 * hint else shown
 
 
-def follow_half_widths(beam_width: float) -> tuple[float, float]:
-    """The half-widths (m) of the outward and the inward follow's cross-profiles for a
-    beam ``beam_width`` wide in the image."""
-    half = PROFILE_HALF_WIDTHS * beam_width
-    return half, max(half, HUB_SEARCH_HALF_M)
+def follow_half_width(beam_width: float) -> float:
+    """The half-width (m) of the follow's cross-profiles for a beam ``beam_width`` wide
+    in the image."""
+    return max(PROFILE_HALF_WIDTHS * beam_width, FOLLOW_HALF_M)
 
 
 def find_strip(
@@ -378,9 +378,11 @@ def crossings(
     image: NDArray[np.uint8], circles: SearchCircles, beam_width: float | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float] | None:
     """Where the beam crosses the two search circles (plane, m), and the width it shows
-    there (m): the strongest pair of strips of one width, one on each circle, at angles
-    within 0.12 rad; None when there is none. Reads the image only on the circles (and
-    one pixel beside them). ``beam_width``: unused (the circles carry the widths taken)."""
+    there (m; the narrower crossing's, the less smeared): the strongest pair of strips
+    of one width, one on each circle, at angles within 0.12 rad (of about the
+    calibration's width first); None when there is none. Reads the image only on the
+    circles (and one pixel beside them). ``beam_width``: unused (the circles carry the
+    widths taken)."""
     r1, r2 = circles.radii
     v1, v2 = circles.sample(image)
     # Strips of about the calibration's width first (0.55 .. 1.7 of it), then of any
@@ -401,7 +403,7 @@ def crossings(
     s1, s2, _ = best
     p1 = r1 * np.array([np.cos(s1.angle), np.sin(s1.angle)])
     p2 = r2 * np.array([np.cos(s2.angle), np.sin(s2.angle)])
-    return p1, p2, 0.5 * (s1.width + s2.width)
+    return p1, p2, min(s1.width, s2.width)
 
 
 def locate(
@@ -428,19 +430,26 @@ def locate(
     d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
     w_out = outward_width(w0, beam_width)
     outward = _follow(
-        image, to_px, p2, d0, w_out, follow_half_widths(w_out)[0], beam_length * 0.7, px_m, 2.5
+        image, to_px, p2, d0, w_out, follow_half_width(w_out), beam_length * 0.7, px_m, 2.5
     )
     if len(outward[1]) == 0:
         raise FrameFailure(
             f"no beam found (the {w0 * 1e3:.1f} mm strip on the search circles "
             "does not continue outward)"
         )
-    # The width the beam shows, from its profiles beyond the outer circle.
-    shown = median(outward[1])
-    w_beam = working_width(shown, beam_width)
-    half_in = follow_half_widths(w_beam)[1]
-    inward = _follow(image, to_px, p1, -d0, w_beam, half_in, beam_length, px_m, 1.4, True)
+    # The width the beam shows: the least smeared one (a beam swinging about the pivot
+    # smears in proportion to the radius, and a strip's half-maximum width is the
+    # larger of its width and its smear): the inner circle's, the outward profiles',
+    # then the first inward profiles' (between the inner circle and the root).
+    shown = min(median(outward[1]), w0)
+    w_in = working_width(shown, beam_width)
+    inward = _follow(
+        image, to_px, p1, -d0, w_in, follow_half_width(w_in), beam_length, px_m, 1.4, True
+    )
     pts_in, widths_in = inward
+    if len(widths_in):
+        shown = min(median(outward[1]), median(widths_in[:3]))
+    w_beam = working_width(shown, beam_width)
     wide = np.flatnonzero(widths_in > _HUB_WIDENING * w_beam)
     if wide.size < 2:
         raise FrameFailure(
@@ -489,6 +498,15 @@ def _strip_end(
     below = np.flatnonzero(v < thr)
     below = below[below > 0]
     return last + (t[below[0]] if below.size else t[-1]) * d
+
+
+def _continues(s: Strip | None, expect: float, width: float, prev_w: float) -> bool:
+    """Whether strip ``s`` continues the followed one expected at offset ``expect``."""
+    return (
+        s is not None
+        and s.width >= 0.5 * width
+        and abs(s.centre - expect) <= 0.7 * max(prev_w, width)
+    )
 
 
 #: Cross-profiles sampled at a time by :func:`_follow`.
@@ -545,11 +563,7 @@ def _follow(
         for k in range(len(ts)):
             near = 0.6 * max(prev_w, width)
             s = find_strip(vals[k], offs, expect, near=near, levels=known[k])
-            if (
-                s is None
-                or s.width < 0.5 * width
-                or abs(s.centre - expect) > 0.7 * max(prev_w, width)
-            ):
+            if not _continues(s, expect, width, prev_w):
                 # Toward the hub, one profile missed is not the end when the next finds
                 # the hub: a profile along the clamp face is half bright (a narrow
                 # beam's window then sees the beam brighter than the face).

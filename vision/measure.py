@@ -669,14 +669,15 @@ class Measurer:
         norm = np.array([-tang[1], tang[0]])
         origin = clamp + a_ref * e + b_ref * n
         lat = np.array([-0.2, 0.0, 0.2]) * w_beam
+        # The edge scans end 0.6 widths and 4 px short of the rough tip (``_scan``).
         dist = end_edge(
             image,
             origin,
             tang,
             norm,
             lat,
-            0.6 * w_beam,
-            1.2 * w_beam,
+            0.6 * w_beam + 4 * self.px_m,
+            1.2 * w_beam + 4 * self.px_m,
             to_px=self.calibration.to_px,
             px_m=self.px_m,
         )

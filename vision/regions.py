@@ -49,9 +49,9 @@ from vision.jpeg_regions import (
     segments_of_blocks,
 )
 from vision.locate import (
-    HUB_SEARCH_HALF_M,
     SearchCircles,
     crossings,
+    follow_half_width,
     outward_width,
     search_circles,
     working_width,
@@ -62,9 +62,8 @@ _BLOCK_PX = 8
 #: Reach of the edge scans beyond a strip's half width (px): the scan's margin, the
 #: widest window and the slant of a scan line across the strip (up to sqrt 2), rounded up.
 _SCAN_REACH_PX = 40.0
-#: The rough location's cross-profiles reach this many beam widths either side of the
+#: The rough location's cross-profiles reach ``follow_half_width`` either side of the
 #: chord through the two crossings; its steps outward and inward, in beam widths.
-_PROFILE_HALF_WIDTHS = 5.0
 _STEP_OUT_WIDTHS = 2.5
 _STEP_IN_WIDTHS = 1.4
 #: Extra room behind the previous frame's hub (m): the hub's back end moves with the
@@ -223,7 +222,7 @@ class RegionReader:
         d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
         # the bands the check asks for, and two blocks more (the two are rasterised from
         # different points: their edges differ by a block here and there)
-        half = _PROFILE_HALF_WIDTHS * w + (2 + 2 * _BLOCK_PX) * self.measurer.px_m
+        half = follow_half_width(w) + (2 + 2 * _BLOCK_PX) * self.measurer.px_m
         # outward to a straight beam's tip, two steps and the tip's search beyond
         out_len = self._length + 0.05 - float(p2 @ d0) + (2 * _STEP_OUT_WIDTHS + 7) * w
         if behind_m is not None:
@@ -238,9 +237,7 @@ class RegionReader:
         # hub's angle to the chord)
         scans = self._reach_m(w) + _OFF_CHORD_WIDTHS * w
         half_out = max(half, 0.75 * w + scans)
-        half_in = max(
-            half, HUB_SEARCH_HALF_M + half - _PROFILE_HALF_WIDTHS * w, 0.75 * hub_w + scans
-        )
+        half_in = max(half, 0.75 * hub_w + scans)
         return self._tubes(
             shape,
             [
@@ -278,8 +275,8 @@ class RegionReader:
         tip = m.tip_plane_m
         line = m.centreline_plane_m
         hub_w = m.hub_width_m if math.isfinite(m.hub_width_m) else 3 * wb
-        half = _PROFILE_HALF_WIDTHS * w + 2 * px_m
-        half_in = max(_PROFILE_HALF_WIDTHS * wb, HUB_SEARCH_HALF_M) + 2 * px_m
+        half = follow_half_width(w) + 2 * px_m
+        half_in = follow_half_width(wb) + 2 * px_m
         out_end = float((tip - p2) @ d0) + 2 * max(_STEP_OUT_WIDTHS * w, 4 * px_m) + 4 * wb
         in_end = float((p1 - back) @ d0) + 2 * max(_STEP_IN_WIDTHS * wb, 4 * px_m)
         tubes = [
