@@ -500,15 +500,6 @@ def _strip_end(
     return last + (t[below[0]] if below.size else t[-1]) * d
 
 
-def _continues(s: Strip | None, expect: float, width: float, prev_w: float) -> bool:
-    """Whether strip ``s`` continues the followed one expected at offset ``expect``."""
-    return (
-        s is not None
-        and s.width >= 0.5 * width
-        and abs(s.centre - expect) <= 0.7 * max(prev_w, width)
-    )
-
-
 #: Cross-profiles sampled at a time by :func:`_follow`.
 _FOLLOW_BATCH = 16
 
@@ -563,7 +554,11 @@ def _follow(
         for k in range(len(ts)):
             near = 0.6 * max(prev_w, width)
             s = find_strip(vals[k], offs, expect, near=near, levels=known[k])
-            if not _continues(s, expect, width, prev_w):
+            if (
+                s is None
+                or s.width < 0.5 * width
+                or abs(s.centre - expect) > 0.7 * max(prev_w, width)
+            ):
                 # Toward the hub, one profile missed is not the end when the next finds
                 # the hub: a profile along the clamp face is half bright (a narrow
                 # beam's window then sees the beam brighter than the face).
