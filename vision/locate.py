@@ -1,12 +1,22 @@
 """Coarse location of the beam and the hub in a frame, in beam-plane coordinates.
 
-Nothing here depends on the renderer: the beam is a bright strip of the calibrated width
-somewhere around the pivot (the plane origin); the hub is where the strip, followed back
-toward the pivot, becomes wider; the clamp is where it does.
+Nothing here depends on the renderer: the beam is a bright strip somewhere around the
+pivot (the plane origin); the hub is where the strip, followed back toward the pivot,
+becomes wider; the clamp is where it does.
+
+The beam's width in the image is measured, not assumed: a beam bending in the plane of the
+mechanism is seen edge-on by a camera looking at that plane (a strip its thickness wide,
+3.2 mm on the paper's bench, plus some side face under tilt), or face-on by another
+bench's camera (19 mm). The calibration's ``beam_width_m`` is a hint only: the search
+circles accept strips from :data:`MIN_STRIP_WIDTH_M` (two pixels or two of the circles'
+samples at least: 2.4 mm with the rig's 19.05 mm) up to :data:`MAX_STRIP_WIDTH_M`, and the
+beam is followed, and the hub found, with the width the strip shows
+(:attr:`Rough.beam_width`; the calibration's where the two agree).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -17,6 +27,22 @@ from vision.errors import FrameFailure
 from vision.sampling import BilinearPlan, bilinear, median
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+#: The narrowest and the widest strip the search circles take for the beam (m): a beam
+#: seen edge-on (1.5 mm: half the paper's beam thickness) up to a bar wider than the
+#: paper's beam seen face-on (19 mm). A strip narrower than two pixels, or two of the
+#: circles' samples, is never taken (:func:`strip_widths`).
+MIN_STRIP_WIDTH_M = 1.5e-3
+MAX_STRIP_WIDTH_M = 0.04
+#: The follow's cross-profiles reach at least this far either side (m), whatever the
+#: beam's width: a bent beam leaves the chord through its crossings of the search
+#: circles by centimetres toward its tip, and a hub is found where the strip widens up
+#: to about twice this wide (the profile's background level is its 20th percentile).
+FOLLOW_HALF_M = 0.05
+#: The hub begins where the strip, followed toward the pivot, is this much wider.
+_HUB_WIDENING = 1.35
+#: Cross-profiles reach this many beam widths either side of the followed strip.
+PROFILE_HALF_WIDTHS = 5.0
 
 
 @dataclass
@@ -38,6 +64,51 @@ class Rough:
     #: (H, 2) centres of the cross-profiles on the hub whose width agrees with the hub's
     #: (half-maximum crossings, sub-sample): points on its axis.
     hub: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+    #: The beam's width as the image shows it (m): the median half-maximum width of the
+    #: cross-profiles followed outward from the search circles, or the calibration's
+    #: where the two agree (:func:`working_width`).
+    beam_width: float = math.nan
+
+
+def circle_step(beam_width: float, px_m: float) -> float:
+    """The search circles' sample spacing (m) for a calibration's width ``beam_width``."""
+    return max(0.8 * px_m, beam_width / 16)
+
+
+def strip_widths(beam_width: float, px_m: float) -> tuple[float, float]:
+    """The range of strip widths (m) the search circles take for the beam: the fixed
+    range (:data:`MIN_STRIP_WIDTH_M` .. :data:`MAX_STRIP_WIDTH_M`, never below two
+    pixels nor two of the circles' samples), widened to the calibration's hint
+    ``beam_width`` (0.55 .. 1.7 of it)."""
+    floor = max(MIN_STRIP_WIDTH_M, 2.0 * px_m, 2.0 * circle_step(beam_width, px_m))
+    lo = min(floor, 0.55 * beam_width)
+    hi = max(MAX_STRIP_WIDTH_M, 1.7 * beam_width)
+    return lo, hi
+
+
+#: A width shown within this fraction of the calibration's is the calibration's (the
+#: edges' width is checked against it to the same fraction, vision.measure).
+_HINT_AGREES = 0.15
+
+
+def working_width(shown: float, hint: float) -> float:
+    """The beam width (m) to follow the strip and scan its edges with: the calibration's
+    ``hint`` when the width the image shows agrees with it (within
+    :data:`_HINT_AGREES`), else the width shown."""
+    return hint if abs(shown - hint) <= _HINT_AGREES * hint else shown
+
+
+def outward_width(shown: float, hint: float) -> float:
+    """The width (m) to follow the strip outward from the search circles with: the
+    circles' width is known to a sample, so within their window about the ``hint``
+    (0.55 .. 1.7 of it) the hint's; the strip's width is then measured on the way."""
+    return hint if 0.55 * hint <= shown <= 1.7 * hint else shown
+
+
+def follow_half_width(beam_width: float) -> float:
+    """The half-width (m) of the follow's cross-profiles for a beam ``beam_width`` wide
+    in the image."""
+    return max(PROFILE_HALF_WIDTHS * beam_width, FOLLOW_HALF_M)
 
 
 def find_strip(
@@ -146,6 +217,11 @@ class SearchCircles:
     radii: tuple[float, float]  # m
     phi: tuple[NDArray[np.float64], NDArray[np.float64]]  # sample angles, rad
     px: tuple[NDArray[np.float64], NDArray[np.float64]]  # (n, 2) raw pixels
+    #: The strip widths (m) taken for the beam (:func:`strip_widths`), and the widths the
+    #: top-hat is tuned to: the calibration's hint and factors of two from it.
+    widths: tuple[float, float] = (MIN_STRIP_WIDTH_M, MAX_STRIP_WIDTH_M)
+    scales: tuple[float, ...] = ()
+    hint: float = 0.01905
     #: Sampling plans per image shape, made at the first frame of that shape.
     plans: dict[tuple[int, ...], tuple[BilinearPlan, BilinearPlan]] = field(
         default_factory=dict, compare=False
@@ -166,16 +242,41 @@ class SearchCircles:
 def search_circles(
     to_px: ToPx, beam_length: float, beam_width: float, px_m: float
 ) -> SearchCircles:
-    """The search circles of a camera placement (see :class:`SearchCircles`)."""
+    """The search circles of a camera placement (see :class:`SearchCircles`);
+    ``beam_width``: the calibration's width, a hint."""
     radii = (0.25 * beam_length, 0.45 * beam_length)
-    step = max(0.8 * px_m, beam_width / 16)
+    lo, hi = strip_widths(beam_width, px_m)
+    step = circle_step(beam_width, px_m)
+    # Each scale takes strips of 0.55 .. 1.7 of it: factors of two overlap.
+    scales = [beam_width]
+    while 1.7 * scales[0] / 2 >= lo:
+        scales.insert(0, scales[0] / 2)
+    while 0.55 * scales[-1] * 2 <= hi:
+        scales.append(scales[-1] * 2)
     phis, pxs = [], []
     for radius in radii:
         n = int(np.ceil(2 * np.pi * radius / step))
         phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
         phis.append(phi)
         pxs.append(to_px(radius * np.column_stack([np.cos(phi), np.sin(phi)])))
-    return SearchCircles(step, (radii[0], radii[1]), (phis[0], phis[1]), (pxs[0], pxs[1]))
+    return SearchCircles(
+        step,
+        (radii[0], radii[1]),
+        (phis[0], phis[1]),
+        (pxs[0], pxs[1]),
+        (lo, hi),
+        tuple(scales),
+        beam_width,
+    )
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    angle: float  # rad, the strip's centre on the circle
+    contrast: float  # DN above the local floor
+    width: float  # m along the circle (half-maximum)
+    i0: int  # first and last sample above half maximum
+    i1: int
 
 
 def _circle_candidates(
@@ -183,9 +284,11 @@ def _circle_candidates(
     phi: NDArray[np.float64],
     width: float,
     step: float,
-) -> list[tuple[float, float]]:
-    """(angle, contrast) of strips of about ``width`` crossing a circle about the pivot,
-    from the image sampled along it (``v``) at angles ``phi``."""
+    accept: tuple[float, float] | None = None,
+) -> list[_Candidate]:
+    """Strips of about ``width`` (0.55 .. 1.7 of it, within ``accept`` when given)
+    crossing a circle about the pivot, from the image sampled along it (``v``) at angles
+    ``phi``."""
     n = len(phi)
     ok = np.isfinite(v)
     if ok.sum() < 10:
@@ -205,6 +308,9 @@ def _circle_candidates(
     noise = median(np.abs(np.diff(vv))) + 1.0
     out = []
     thr = max(10.0, 5 * noise)
+    lo, hi = 0.55 * width, 1.7 * width
+    if accept is not None:
+        lo, hi = max(lo, accept[0]), min(hi, accept[1])
     # Local maxima around the circle (np.roll's generality costs more than the compare).
     before = np.concatenate((top[-1:], top[:-1]))
     after = np.concatenate((top[1:], top[:1]))
@@ -219,34 +325,85 @@ def _circle_candidates(
         while tl[i1 % n] > half and i1 - p < n // 4:
             i1 += 1
         wid = (i1 - i0 - 1) * step
-        if 0.55 * width <= wid <= 1.7 * width:
-            out.append((float(phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n)), float(top[p])))
+        if lo <= wid <= hi:
+            angle = float(phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n))
+            out.append(_Candidate(angle, float(top[p]), wid, i0 + 1, i1 - 1))
     return out
 
 
-def crossings(
-    image: NDArray[np.uint8], circles: SearchCircles, beam_width: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-    """Where the beam crosses the two search circles (plane, m): the strongest pair of
-    strips of its width, one on each circle, at angles within 0.12 rad; None when there
-    is none. Reads the image only on the circles (and one pixel beside them)."""
-    r1, r2 = circles.radii
-    step = circles.step
-    v1, v2 = circles.sample(image)
-    c1 = _circle_candidates(v1, circles.phi[0], beam_width, step)
-    c2 = _circle_candidates(v2, circles.phi[1], beam_width, step)
+def _circle_strips(
+    v: NDArray[np.float64], phi: NDArray[np.float64], circles: SearchCircles
+) -> list[_Candidate]:
+    """The strips of every width the circles take (:attr:`SearchCircles.widths`), each
+    once: a strip found at several scales is kept as the widest; a narrower one inside
+    a wider one (noise on a wide strip's plateau) is not a strip."""
+    found: list[_Candidate] = []
+    for w in circles.scales:
+        found += _circle_candidates(v, phi, w, circles.step, circles.widths)
+    found.sort(key=lambda c: -c.width)
+    n = len(phi)
+    kept: list[_Candidate] = []
+    for c in found:
+        p = round(c.angle / (2 * np.pi) * n)
+        if not any((p - k.i0) % n <= (k.i1 - k.i0) % n for k in kept):
+            kept.append(c)
+    return kept
+
+
+#: The two crossings' widths agree within this factor (the half-maximum width of a strip
+#: a few samples wide is known to a sample).
+_CROSSING_WIDTH_RATIO = 1.6
+
+
+def _best_pair(
+    c1: list[_Candidate], c2: list[_Candidate], max_ratio: float
+) -> tuple[_Candidate, _Candidate, float] | None:
+    """The pair of strips, one on each circle at angles within 0.12 rad and widths within
+    ``max_ratio``, of the largest summed contrast."""
     best = None
-    for a1, k1 in c1:
-        for a2, k2 in c2:
-            d = np.angle(np.exp(1j * (a2 - a1)))
-            if abs(d) < 0.12 and (best is None or k1 + k2 > best[2]):
-                best = (a1, a2, k1 + k2)
+    for s1 in c1:
+        for s2 in c2:
+            d = np.angle(np.exp(1j * (s2.angle - s1.angle)))
+            ratio = max(s1.width, s2.width) / min(s1.width, s2.width)
+            if (
+                abs(d) < 0.12
+                and ratio <= max_ratio
+                and (best is None or s1.contrast + s2.contrast > best[2])
+            ):
+                best = (s1, s2, s1.contrast + s2.contrast)
+    return best
+
+
+def crossings(
+    image: NDArray[np.uint8], circles: SearchCircles, beam_width: float | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float] | None:
+    """Where the beam crosses the two search circles (plane, m), and the width it shows
+    there (m; the narrower crossing's, the less smeared): the strongest pair of strips
+    of one width, one on each circle, at angles within 0.12 rad (of about the
+    calibration's width first); None when there is none. Reads the image only on the
+    circles (and one pixel beside them). ``beam_width``: unused (the circles carry the
+    widths taken)."""
+    r1, r2 = circles.radii
+    v1, v2 = circles.sample(image)
+    # Strips of about the calibration's width first (0.55 .. 1.7 of it), then of any
+    # width the circles take, of one width on both.
+    best = _best_pair(
+        _circle_candidates(v1, circles.phi[0], circles.hint, circles.step),
+        _circle_candidates(v2, circles.phi[1], circles.hint, circles.step),
+        math.inf,
+    )
+    if best is None:
+        best = _best_pair(
+            _circle_strips(v1, circles.phi[0], circles),
+            _circle_strips(v2, circles.phi[1], circles),
+            _CROSSING_WIDTH_RATIO,
+        )
     if best is None:
         return None
-    a1, a2, _ = best
-    p1 = r1 * np.array([np.cos(a1), np.sin(a1)])
-    p2 = r2 * np.array([np.cos(a2), np.sin(a2)])
-    return p1, p2
+    s1, s2, _ = best
+    p1 = r1 * np.array([np.cos(s1.angle), np.sin(s1.angle)])
+    p2 = r2 * np.array([np.cos(s2.angle), np.sin(s2.angle)])
+    return p1, p2, min(s1.width, s2.width)
 
 
 def locate(
@@ -256,27 +413,51 @@ def locate(
     beam_width: float,
     px_m: float,
     circles: SearchCircles | None = None,
-    found: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    found: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None,
 ) -> Rough:
     """Find the beam around the pivot and follow it to the tip and back over the hub.
-    ``circles``: :func:`search_circles` of this placement, when already mapped;
+    ``beam_width``: the calibration's, a hint (the width followed is the one the strip
+    shows). ``circles``: :func:`search_circles` of this placement, when already mapped;
     ``found``: :func:`crossings` of this image on them, when already found."""
     if circles is None:
         circles = search_circles(to_px, beam_length, beam_width, px_m)
     if found is None:
-        found = crossings(image, circles, beam_width)
+        found = crossings(image, circles)
     if found is None:
-        raise FrameFailure("no beam found (no bright strip of the beam's width about the pivot)")
-    p1, p2 = found
+        lo, hi = circles.widths
+        raise FrameFailure(
+            "no beam found (no bright strip "
+            f"{lo * 1e3:.1f} .. {hi * 1e3:.0f} mm wide crossing both circles about the pivot)"
+        )
+    p1, p2, w0 = found
     d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
+    w_out = outward_width(w0, beam_width)
     outward = _follow(
-        image, to_px, p2, d0, beam_width, 5.0 * beam_width, beam_length * 0.7, px_m, 2.5
+        image, to_px, p2, d0, w_out, follow_half_width(w_out), beam_length * 0.7, px_m, 2.5
     )
-    inward = _follow(image, to_px, p1, -d0, beam_width, 5.0 * beam_width, beam_length, px_m, 1.4)
+    if len(outward[1]) == 0:
+        raise FrameFailure(
+            f"no beam found (the {w0 * 1e3:.1f} mm strip on the search circles "
+            "does not continue outward)"
+        )
+    # The width the beam shows: the least smeared one (a beam swinging about the pivot
+    # smears in proportion to the radius, and a strip's half-maximum width is the
+    # larger of its width and its smear): the inner circle's, the outward profiles',
+    # then the first inward profiles' (between the inner circle and the root).
+    shown = min(median(outward[1]), w0)
+    w_in = working_width(shown, beam_width)
+    inward = _follow(
+        image, to_px, p1, -d0, w_in, follow_half_width(w_in), beam_length, px_m, 1.4, True
+    )
     pts_in, widths_in = inward
-    wide = np.flatnonzero(widths_in > 1.35 * beam_width)
+    if len(widths_in):
+        shown = min(median(outward[1]), median(widths_in[:3]))
+    w_beam = working_width(shown, beam_width)
+    wide = np.flatnonzero(widths_in > _HUB_WIDENING * w_beam)
     if wide.size < 2:
-        raise FrameFailure("no hub found (the strip does not widen toward the pivot)")
+        raise FrameFailure(
+            f"no hub found (the {shown * 1e3:.1f} mm strip does not widen toward the pivot)"
+        )
     k0 = int(wide[0])
     clamp = pts_in[k0 - 1] if k0 > 0 else pts_in[0]
     clamp = 0.5 * (clamp + pts_in[k0])
@@ -296,8 +477,8 @@ def locate(
     hub_back = hub_pts[last - 1]
     beam_in = pts_in[:k0][::-1]
     beam = np.vstack([beam_in, p1[None, :], outward[0]])
-    tip = _strip_end(image, to_px, beam, beam_width, px_m)
-    return Rough(beam, clamp, hub_back, med, tip, hub_pts[:last][keep[:last]])
+    tip = _strip_end(image, to_px, beam, w_beam, px_m)
+    return Rough(beam, clamp, hub_back, med, tip, hub_pts[:last][keep[:last]], w_beam)
 
 
 def _strip_end(
@@ -336,20 +517,25 @@ def _follow(
     max_len: float,
     px_m: float,
     step_widths: float,
+    to_hub: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Follow a bright strip from ``start`` along ``direction`` until it ends.
 
     The cross-profiles (perpendicular to ``direction``, +-``half_m``) are sampled a batch
     at a time (a strip usually ends well before ``max_len``); the strip is then followed
-    through them, each search starting where the last crossing was."""
+    through them, each search starting where the last crossing was; it ends at the
+    first profile without it (``to_hub``: unless the next one finds the hub, a strip
+    wider by :data:`_HUB_WIDENING`)."""
     step = max(step_widths * width, 4 * px_m)
     ts_all = np.arange(step, max_len + step / 2, step)
     n = np.array([-direction[1], direction[0]])
     offs = np.arange(-half_m, half_m + 0.375 * px_m, 0.75 * px_m)
     centres: list[float] = []
     widths: list[float] = []
+    at: list[int] = []  # the profiles that found the strip
     expect, prev_w = 0.0, width
     lost = False
+    missed = False
     for b0 in range(0, len(ts_all), _FOLLOW_BATCH):
         if lost:
             break
@@ -376,14 +562,25 @@ def _follow(
                 or s.width < 0.5 * width
                 or abs(s.centre - expect) > 0.7 * max(prev_w, width)
             ):
+                # Toward the hub, one profile missed is not the end when the next finds
+                # the hub: a profile along the clamp face is half bright (a narrow
+                # beam's window then sees the beam brighter than the face).
+                if missed or not to_hub:
+                    lost = True
+                    break
+                missed = True
+                continue
+            if missed and s.width <= _HUB_WIDENING * width:
                 lost = True
                 break
+            missed = False
             centres.append(s.centre)
             widths.append(s.width)
+            at.append(b0 + k)
             expect, prev_w = s.centre, s.width
     if not centres:
         return np.zeros((0, 2)), np.zeros(0)
     cs = np.array(centres)
-    ts = ts_all[: len(cs)]
+    ts = ts_all[at]
     out = (start[None, :] + ts[:, None] * direction[None, :]) + cs[:, None] * n[None, :]
     return out, np.array(widths)

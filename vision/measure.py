@@ -175,7 +175,7 @@ class Measurer:
         self,
         image_gray: NDArray[np.uint8],
         *,
-        crossings_m: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+        crossings_m: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None,
     ) -> FrameMeasurement:
         """Measure one uint8 gray [row, col] frame; never raises for a bad frame.
         ``crossings_m``: where the beam crosses the search circles in this frame
@@ -213,11 +213,12 @@ class Measurer:
     def _measure_default(
         self,
         image: NDArray[np.uint8],
-        crossings_m: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+        crossings_m: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None,
     ) -> FrameMeasurement:
         cal = self.calibration
         w_beam, length = cal.beam_width_m, cal.beam_length_m
         rough = locate(image, cal.to_px, length, w_beam, self.px_m, self._circles, crossings_m)
+        w_beam = rough.beam_width  # the width the image shows (the calibration's: a hint)
         # The hub's axis, first through the rough centres of its cross-profiles: enough
         # to place the searches for its end faces, whose lines lie symmetrically about it.
         e, n, axis_b = rough_axis(rough)
@@ -317,8 +318,8 @@ class Measurer:
         centre, rms, width = fit.centre, fit.rms, fit.width
         if abs(width - w_beam) > 0.15 * w_beam:
             raise FrameFailure(
-                f"beam width {width * 1e3:.1f} mm in the image disagrees with the "
-                f"calibration's {w_beam * 1e3:.1f} mm"
+                f"beam width {width * 1e3:.1f} mm from its edges disagrees with the "
+                f"{w_beam * 1e3:.1f} mm of its cross-profiles"
             )
         # A beam is a smooth curve: the edges' residuals from its fitted shape are the
         # image noise, correlated from one scan line to the next only through the
@@ -680,14 +681,15 @@ class Measurer:
         norm = np.array([-tang[1], tang[0]])
         origin = clamp + a_ref * e + b_ref * n
         lat = np.array([-0.2, 0.0, 0.2]) * w_beam
+        # The edge scans end 0.6 widths and 4 px short of the rough tip (``_scan``).
         dist = end_edge(
             image,
             origin,
             tang,
             norm,
             lat,
-            0.6 * w_beam,
-            1.2 * w_beam,
+            0.6 * w_beam + 4 * self.px_m,
+            1.2 * w_beam + 4 * self.px_m,
             to_px=self.calibration.to_px,
             px_m=self.px_m,
         )

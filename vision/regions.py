@@ -48,16 +48,22 @@ from vision.jpeg_regions import (
     paste,
     segments_of_blocks,
 )
-from vision.locate import SearchCircles, crossings, search_circles
+from vision.locate import (
+    SearchCircles,
+    crossings,
+    follow_half_width,
+    outward_width,
+    search_circles,
+    working_width,
+)
 from vision.measure import Measurer
 
 _BLOCK_PX = 8
 #: Reach of the edge scans beyond a strip's half width (px): the scan's margin, the
 #: widest window and the slant of a scan line across the strip (up to sqrt 2), rounded up.
 _SCAN_REACH_PX = 40.0
-#: The rough location's cross-profiles reach this many beam widths either side of the
+#: The rough location's cross-profiles reach ``follow_half_width`` either side of the
 #: chord through the two crossings; its steps outward and inward, in beam widths.
-_PROFILE_HALF_WIDTHS = 5.0
 _STEP_OUT_WIDTHS = 2.5
 _STEP_IN_WIDTHS = 1.4
 #: Extra room behind the previous frame's hub (m): the hub's back end moves with the
@@ -93,7 +99,6 @@ class RegionReader:
         #: False: every frame decoded whole (the comparison in ``bench process``)
         self.parts = bool(parts)
         cal = measurer.calibration
-        self._w = cal.beam_width_m
         self._length = cal.beam_length_m
         self._circles: SearchCircles = search_circles(
             cal.to_px, cal.beam_length_m, cal.beam_width_m, measurer.px_m
@@ -142,15 +147,16 @@ class RegionReader:
         canvas = blank_canvas(layout, level)
         paste(layout, canvas, ring_segs, strip)
         image = image_of(layout, canvas)
-        found = crossings(image, self._circles, self._w)
+        found = crossings(image, self._circles)
         if found is None:
             return None
-        p1, p2 = found
+        p1, p2, shown = found
+        w0 = outward_width(shown, self.measurer.calibration.beam_width_m)
         # What was decoded, by segment (whole segments are decoded, the circles' first:
         # none of them again where the band overlaps them).
         done = np.zeros(layout.per_row * layout.mcu_rows, dtype=bool)
         done[ring_segs] = True
-        want = self._predicted(p1, p2, shape)
+        want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
             new = np.flatnonzero(_segment_hit(layout, want) & ~done)
             if new.size:
@@ -164,14 +170,14 @@ class RegionReader:
             m = self.measurer.measure(image_of(layout, canvas), crossings_m=found)
             if not m.ok:
                 return None
-            read = self._read(m, p1, p2, shape)
+            read = self._read(m, p1, p2, w0, shape)
             if not np.any(_segment_hit(layout, read) & ~done):
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
             # behind the pivot (a hub cut short by what was not decoded reads farther
             # once it is decoded), and measure again.
-            want = read | self._predicted(p1, p2, shape, behind_m=self._length)
+            want = read | self._predicted(p1, p2, w0, shape, behind_m=self._length)
         return None
 
     def _keep_track(self, m: FrameMeasurement) -> None:
@@ -205,17 +211,18 @@ class RegionReader:
         self,
         p1: NDArray[np.float64],
         p2: NDArray[np.float64],
+        w: float,
         shape: tuple[int, int],
         behind_m: float | None = None,
     ) -> NDArray[np.bool_]:
         """The blocks the measurement should read, before it: the bands about the chord,
         widened by the scans' reach; behind the pivot to the previous frame's hub (the
-        track), :data:`_HUB_BACK_M` without one, or ``behind_m``."""
-        w = self._w
+        track), :data:`_HUB_BACK_M` without one, or ``behind_m``. ``w``: the width of
+        the strip on the search circles (the beam's width in the image)."""
         d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
         # the bands the check asks for, and two blocks more (the two are rasterised from
         # different points: their edges differ by a block here and there)
-        half = _PROFILE_HALF_WIDTHS * w + (2 + 2 * _BLOCK_PX) * self.measurer.px_m
+        half = follow_half_width(w) + (2 + 2 * _BLOCK_PX) * self.measurer.px_m
         # outward to a straight beam's tip, two steps and the tip's search beyond
         out_len = self._length + 0.05 - float(p2 @ d0) + (2 * _STEP_OUT_WIDTHS + 7) * w
         if behind_m is not None:
@@ -244,6 +251,7 @@ class RegionReader:
         m: FrameMeasurement,
         p1: NDArray[np.float64],
         p2: NDArray[np.float64],
+        w: float,
         shape: tuple[int, int],
     ) -> NDArray[np.bool_]:
         """The blocks a measurement read, from its result: the rough location's bands
@@ -252,28 +260,37 @@ class RegionReader:
         the clamp's and the back face's searches (a hub width either side of each) and
         the tip's (its end face, up to four beam widths on)."""
         cal = self.measurer.calibration
-        w = self._w
-        reach = self._reach_m(w)
+        px_m = self.measurer.px_m
+        # ``w``: the outward band's width (the strip's on the circles, or the hint); the
+        # rest used the width the beam showed, which the fitted one is within 15 % of
+        # where it is not the calibration's (vision.locate.working_width).
+        hint = cal.beam_width_m
+        wb = w
+        if math.isfinite(m.beam_width_m):
+            wb = working_width(m.beam_width_m, hint)
+            wb = max(w, wb if wb == hint else 1.15 * wb)
+        reach = self._reach_m(wb)
         d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
         back, clamp = cal.to_plane(m.hub_line_px)
         tip = m.tip_plane_m
         line = m.centreline_plane_m
-        hub_w = m.hub_width_m if math.isfinite(m.hub_width_m) else 3 * w
-        half = _PROFILE_HALF_WIDTHS * w + 2 * self.measurer.px_m
-        out_end = float((tip - p2) @ d0) + 2 * _STEP_OUT_WIDTHS * w + 4 * w
-        in_end = float((p1 - back) @ d0) + 2 * _STEP_IN_WIDTHS * w
+        hub_w = m.hub_width_m if math.isfinite(m.hub_width_m) else 3 * wb
+        half = follow_half_width(w) + 2 * px_m
+        half_in = follow_half_width(wb) + 2 * px_m
+        out_end = float((tip - p2) @ d0) + 2 * max(_STEP_OUT_WIDTHS * w, 4 * px_m) + 4 * wb
+        in_end = float((p1 - back) @ d0) + 2 * max(_STEP_IN_WIDTHS * wb, 4 * px_m)
         tubes = [
             (np.array([p2, p2 + max(out_end, 0.0) * d0]), half),
-            (np.array([p1, p1 - max(in_end, 0.0) * d0]), half),
+            (np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in),
         ]
-        beam_r = 0.75 * w + reach
+        beam_r = 0.75 * wb + reach
         if math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px:
             # smeared: centroid cuts reach 1.5 smears + half a width + 3 px either side
             beam_r += 1.5 * self.measurer.max_smear_px * self.measurer.px_m * 1.5
         tubes.append((line, beam_r))
         # the tip's searches: single lines along the tangent, up to 4 widths on
         pad = 6 * self.measurer.px_m
-        tubes.append((np.vstack([tip, tip + 4.5 * w * _unit(tip - line[-2])]), 0.5 * w + pad))
+        tubes.append((np.vstack([tip, tip + 4.5 * wb * _unit(tip - line[-2])]), 0.5 * wb + pad))
         e = _unit(clamp - back)
         hub_line = np.array([back - 0.5 * hub_w * e, clamp + 0.5 * hub_w * e])
         tubes.append((hub_line, 0.75 * hub_w + reach))

@@ -51,6 +51,7 @@ def test_crossings_found_by_the_caller_are_used_as_found(nominal_spec, vt) -> No
     turned = (
         np.array([[0.0, -1.0], [1.0, 0.0]]) @ found[0],
         np.array([[0.0, -1.0], [1.0, 0.0]]) @ found[1],
+        found[2],
     )
     with pytest.raises(FrameFailure):
         locate(*args, found=turned)
