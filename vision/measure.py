@@ -481,7 +481,7 @@ class Measurer:
         # the polynomial's axis is 3-4 times noisier than the modes' (its shapes bend
         # freely at the root), so the modes stated about the polynomial's uncertainty
         # and two frames of 24 were refused at 0.53-0.57 mm with modal fits within
-        # 0.1 mm. Part (2) alone (or d^2 - var_d) does not see the truncation on the
+        # 0.2 mm. Part (2) alone (or d^2 - var_d) does not see the truncation on the
         # synthetic bench's swinging beams (one frame of 24 at 3.5-3.9 sd): four modes
         # leave 0.02 mrad of the hub angle there, on which five to ten modes agree.
         more = fit_clamped_joint(
