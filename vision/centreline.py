@@ -518,7 +518,8 @@ class JointFit:
     hub_width: float
     hub_offset: float
     hub_rms: float
-    #: The modal fit's check (NaN for the polynomial): the beam's residual sum of squares
+    #: The modal fit's check (NaN for the polynomial, and for a fit to another's
+    #: ``inliers``, a reference): the beam's residual sum of squares
     #: that the generic polynomial's ``shape_dof`` extra shapes remove, over the residual
     #: variance (inflated for correlation): chi-squared with ``shape_dof`` degrees of
     #: freedom when the modes hold the shape.
@@ -578,8 +579,8 @@ def fit_clamped_joint(
     than at its root, which a constant width leaves in the residuals, in runs.
 
     ``inliers``: another fit's :attr:`JointFit.inliers` on the same points (the modal
-    fit's, for its polynomial reference): taken instead of choosing them again, one fit
-    instead of up to six (ignored where that fit dropped the hub's edges).
+    fit's, for its polynomial and more-modes references): taken instead of choosing them
+    again, one fit instead of up to six (ignored where that fit dropped the hub's edges).
 
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
     if modes <= 0:
@@ -615,6 +616,7 @@ def fit_clamped_joint(
         clamp_from_pivot,
         shape,
         slope_fn,
+        inliers,
     )
 
 
@@ -776,7 +778,7 @@ def _fit_joint(
         outlier_fraction=1.0 - float(kb.mean()),
     )
     shape_chi2, shape_dof = math.nan, 0
-    if modal is not None:
+    if modal is not None and not given:  # a reference on another fit's inliers: none
         # The modes against the modes and the polynomial together, on the beam's inliers
         # (its own width, turn and shape): the residual's components along the extra
         # shapes, orthonormalised against the modes', are independent N(0, sigma^2)

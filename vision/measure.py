@@ -78,6 +78,13 @@ _TIP_BLUR_FACTOR = 1.5
 _MODAL_TURN_RAD = 5e-4
 
 
+#: The modes' truncation error is taken as the change that this many more modes make
+#: (the first two omitted modes together: on the fast set's frame whose four modes leave
+#: 0.022 mrad of hub angle, five to ten modes agreeing on it, two more show 0.025 and
+#: one more 0.017).
+_MORE_MODES = 2
+
+
 def _chi2_999(dof: int) -> float:
     """The 0.999 quantile of chi-squared with ``dof`` degrees of freedom (Wilson and
     Hilferty's cube-root normal approximation, within 1 % from 3 degrees of freedom)."""
@@ -111,8 +118,9 @@ class Measurer:
         generic clamped polynomial of ``poly_degree``; the modal fit is taken when its
         shape test passes and it agrees with the clamped polynomial (refitted in its
         frame) on the hub angle and the tip within 3 standard uncertainties of their
-        difference, its uncertainties then widened by what of that difference its noise
-        does not explain (the shape model's own error). 0: the polynomial alone.
+        difference, its uncertainties then widened by the shape model's own error: what
+        two more modes change (truncation), and what of the polynomial's extra shapes
+        their noise does not explain (no cantilever's shape). 0: the polynomial alone.
     max_edge_correlation : frames whose beam-edge residuals correlate beyond it from one
         scan line to the next are refused: the edges then run away from any smooth beam
         shape (a damaged JPEG's shifted blocks measured 0.89-0.91 and came out ``ok`` with
@@ -412,8 +420,10 @@ class Measurer:
         polynomial refitted in its frame on its inliers beyond 3 standard
         uncertainties of the difference on the hub angle or the tip (the polynomial's
         variance less the modal one's: the difference of an efficient and a consistent
-        estimator, Hausman's test). The stated uncertainties include the part of the
-        difference its noise does not explain. ``poly``: the polynomial fit (its
+        estimator, Hausman's test). The stated uncertainties include the modes' own
+        error: their truncation (what two more modes change) and, pooled over the
+        shape test's extra shapes, what of the polynomial's difference its noise does
+        not explain. ``poly``: the polynomial fit (its
         centre line gives the edges' slope and the arc lengths)."""
         joint: JointFit | None = None
         amax = amax_poly
@@ -473,13 +483,41 @@ class Measurer:
             return None
         if gap * gap > 9.0 * var_gap or d_tip * d_tip > 9.0 * var_tip:
             return None
-        # The modes' own error, as far as the difference shows it: the whole difference
-        # (what of it the difference's noise does not explain, sqrt(d^2 - var_d), left
-        # frames of the synthetic bench (JPEG 90, a 200 mm hub) with image - simulation
-        # 0.050 mm RMS against 0.039 stated: errors common to long edges that the
-        # difference's noise had been covering).
-        sd_hub = math.hypot(joint.rotation_sd_rad, gap)
-        sd_tip = math.hypot(joint.fit.tip_sd, d_tip)
+        # The modes' own error, in two parts. (1) Their truncation: the change that two
+        # more modes make, fitted on the same inliers in the same frame (the whole
+        # change, its noise included: small, since the next modes are smooth and well
+        # determined). (2) A shape that is no cantilever's: the polynomial's
+        # extra shapes, as far as they rise above their noise (the shape test's
+        # chi-squared per degree of freedom beyond 1, the excess spread over the
+        # difference's noise variance: the pooled estimate over all the extra shapes).
+        # Formerly the whole difference from the polynomial: on a short clamp block
+        # the polynomial's axis is 3-4 times noisier than the modes' (its shapes bend
+        # freely at the root), so the modes stated about the polynomial's uncertainty
+        # and two frames of 24 were refused at 0.53-0.57 mm with modal fits within
+        # 0.2 mm. Part (2) alone (or d^2 - var_d) does not see the truncation on the
+        # synthetic bench's swinging beams (one frame of 24 at 3.5-3.9 sd): four modes
+        # leave 0.02 mrad of the hub angle there, on which five to ten modes agree.
+        more = fit_clamped_joint(
+            la,
+            lb,
+            ha,
+            hb,
+            self.poly_degree,
+            amax,
+            d_clamp,
+            modes=self.shape_modes + _MORE_MODES,
+            beam_length=length,
+            along=poly.fit.centre,
+            edge_slope=poly.fit.centre.deriv if edges else None,
+            inliers=joint.inliers,
+        )
+        if isinstance(more, str):
+            return None
+        gap = joint.rotation_rad - more.rotation_rad
+        d_tip = float(joint.fit.centre(centre_at)[0]) - float(more.fit.centre(centre_at)[0])
+        excess = max(joint.shape_chi2 / joint.shape_dof - 1.0, 0.0)
+        sd_hub = math.sqrt(joint.rotation_sd_rad**2 + gap**2 + var_gap * excess)
+        sd_tip = math.sqrt(joint.fit.tip_sd**2 + d_tip**2 + var_tip * excess)
         return e, joint, amax, sd_hub, sd_tip
 
     def _strip_points(
