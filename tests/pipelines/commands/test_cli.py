@@ -62,12 +62,23 @@ def test_bad_rig_is_one_error_line_and_exit_2(tmp_path: Path) -> None:
     assert "Traceback" not in proc.stderr
 
 
-def test_usage_mistake_is_one_error_line(capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["sim", "no-such-scene"],
+        ["process", "run.mcap", "--out", "r.nc", "--frame-previews", "bogus"],
+    ],
+    ids=["scene", "frame-previews"],
+)
+def test_usage_mistake_is_one_error_line(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
     with pytest.raises(SystemExit) as info:
-        main(["sim", "no-such-scene"])
+        main(argv)
     assert info.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ")
+    assert argv[-1] in err[0]
 
 
 @pytest.mark.parametrize(
