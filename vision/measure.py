@@ -24,6 +24,7 @@ Methods
 
 from __future__ import annotations
 
+import functools
 import itertools
 import logging
 import math
@@ -461,7 +462,9 @@ class Measurer:
         # their inliers (a degree-12 reference, nearly unbiased on a cantilever's shape,
         # turned the modes down on the foreign bench's frames, whose detected
         # registration bends the shape: 81 % measured against 100 %).
-        ref = fit_clamped_joint(
+        # the modes' frame and inliers: the reference and the two-more-modes fit below
+        refit = functools.partial(
+            fit_clamped_joint,
             la,
             lb,
             ha,
@@ -472,6 +475,7 @@ class Measurer:
             edge_slope=poly.fit.centre.deriv if edges else None,
             inliers=joint.inliers,
         )
+        ref = refit()
         if isinstance(ref, str):
             return None
         gap = joint.rotation_rad - ref.rotation_rad
@@ -497,19 +501,8 @@ class Measurer:
         # 0.2 mm. Part (2) alone (or d^2 - var_d) does not see the truncation on the
         # synthetic bench's swinging beams (one frame of 24 at 3.5-3.9 sd): four modes
         # leave 0.02 mrad of the hub angle there, on which five to ten modes agree.
-        more = fit_clamped_joint(
-            la,
-            lb,
-            ha,
-            hb,
-            self.poly_degree,
-            amax,
-            d_clamp,
-            modes=self.shape_modes + _MORE_MODES,
-            beam_length=length,
-            along=poly.fit.centre,
-            edge_slope=poly.fit.centre.deriv if edges else None,
-            inliers=joint.inliers,
+        more = refit(
+            modes=self.shape_modes + _MORE_MODES, beam_length=length, along=poly.fit.centre
         )
         if isinstance(more, str):
             return None
