@@ -14,9 +14,16 @@ Sets (all 2048 x 1536, truth from the renderer):
   free end's zero moment and shear (the variety sets' shapes are a cantilever's: the
   static response to a random smooth load), so the cantilever's shape model is wrong
   there and must be found wrong;
-- smear-20, smear-40: nominal imaging, the hub turning and the beam vibrating so that the
-  tip moves 20 / 40 mm across the beam during the exposure (tip speed 2-3.4 m/s, the
-  exposure set to match), truth at mid-exposure;
+- smear-20, smear-40: nominal imaging under uneven light (10-20 % across the image at a
+  random azimuth), the hub turning and the beam vibrating in its first mode during an
+  exposure of 20 / 40 mm over the tip's speed (2-3.4 m/s, the hub's share 0.3-1 of it),
+  truth at mid-exposure. The two shares have independent signs: where they add (about
+  half the frames) the tip moves 20 / 40 mm across the beam, the most of any point; where
+  they counter-move (the beam lagging the hub near a stroke end: the synthetic bench's
+  simulated beam does so 14 % of the time at 0.92 Hz, 32 % at 2.35 Hz, its mode's share
+  up to 3 m/s there) the tip moves less and the root and mid-beam are smeared by the
+  hub's turn. The set's smear is thus the most any point of the beam moves, reached at
+  the tip when the shares add;
 - low-30, low-60: nominal imaging with the beam only 30 DN above the background at 5 DN of
   noise, and 60 DN at 8 DN (the hub 0.85 of that);
 - fast: the built-in synthetic bench (:mod:`pipelines.acquire.synthetic`: the simulated
@@ -92,6 +99,11 @@ VARIETY = {
     "low-30": ((0.20, 0.04), 0.0, (30.0, 5.0)),
     "low-60": ((0.20, 0.04), 0.0, (60.0, 8.0)),
 }
+#: The smear sets' uneven light: the illumination changes by 10-20 % across the image
+#: (``SceneSpec.lighting_gradient``) at a random azimuth.
+SMEAR_LIGHTING = (0.10, 0.20)
+#: The smeared exposure's slices: no point of the beam moves more than this (m) a slice.
+SMEAR_STEP_M = 2e-4
 
 
 @dataclass
@@ -177,6 +189,12 @@ def _variety_spec(kind: str, rng: np.random.Generator, seed: int) -> SceneSpec:
     tilt = (8.0, 12.0) if kind.startswith("short-hub") else (10.0, 20.0)
     pose = CameraPoseConfig(tilt_rad=math.radians(rng.uniform(*tilt)))
     background = 40.0
+    light: dict[str, float] = {}
+    if VARIETY[kind][1] > 0:  # the smear sets' uneven light (the others' draws unchanged)
+        light = {
+            "lighting_gradient": float(rng.uniform(*SMEAR_LIGHTING)),
+            "lighting_azimuth_rad": float(rng.uniform(-math.pi, math.pi)),
+        }
     return SceneSpec.from_rig(
         CameraConfig(),
         pose,
@@ -191,25 +209,34 @@ def _variety_spec(kind: str, rng: np.random.Generator, seed: int) -> SceneSpec:
         background_dn=background,
         beam_dn=background + contrast,
         hub_dn=background + 0.85 * contrast,
+        **light,
     )
 
 
 def _smeared(rng: np.random.Generator, smear_m: float) -> list[BeamPose]:
-    """Poses over an exposure during which the tip moves ``smear_m`` across the beam: the
-    hub turning and the beam vibrating in its first mode (shape ~ the static one), the
-    tip at 2-3.4 m/s, the exposure set to match."""
+    """Poses over an exposure of ``smear_m / speed``: the hub turning and the beam
+    vibrating in its first mode, each share of the tip's speed (the hub's 0.3-1 of
+    ``speed``, 2-3.4 m/s, the mode's the rest) with its own sign. Where the two add
+    (about half the frames) the tip moves ``smear_m`` across the beam, the most of any
+    point; where they counter-move (the beam lagging the hub near a stroke end) the tip
+    moves ``|hub - mode|`` of it and the root and mid-beam are smeared by the hub's turn,
+    often more than the tip: ``smear_m`` bounds every point's smear then."""
     hub = math.radians(rng.uniform(265, 305))
     pose = _physical_shape(rng, hub, 0.035)
     speed = rng.uniform(2.0, 3.4)
     share = rng.uniform(0.3, 1.0)  # of the tip speed from the hub's rotation
-    sign = float(rng.choice([-1.0, 1.0]))
-    reach = HUB_OFFSET_M + L_M + float(pose.longitudinal_m[-1])
-    hub_rate = sign * share * speed / reach
-    mode = pose.lateral_m / pose.lateral_m[-1]  # the shape's own (a free end's), 1 at the tip
-    lat_rate = sign * (1 - share) * speed * mode
+    hub_sign, mode_sign = (float(v) for v in rng.choice([-1.0, 1.0], size=2))
+    radius = HUB_OFFSET_M + pose.stations_m + pose.longitudinal_m
+    hub_rate = hub_sign * share * speed / float(radius[-1])
+    x = pose.stations_m / L_M
+    mode = cantilever_modes_t(x, 1)[0] / 2.0  # the first mode, 1 at the tip
+    lat_rate = mode_sign * (1 - share) * speed * mode
     exposure = smear_m / speed
     motion = BeamMotion(pose, hub_rate, lat_rate)
-    return motion.exposure_poses(exposure, HUB_OFFSET_M, max_step_m=2e-4)
+    # Slices by the fastest point, not the tip (which barely moves when the two cancel).
+    fastest = float(np.max(np.abs(hub_rate * radius + lat_rate)))
+    n = max(1, math.ceil(fastest * exposure / SMEAR_STEP_M))
+    return [motion.at(((k + 0.5) / n - 0.5) * exposure) for k in range(n)]
 
 
 def _framing(

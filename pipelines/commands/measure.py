@@ -106,6 +106,18 @@ def _calibration_included(
     return out, total[2]
 
 
+def _seen(m: dict[str, Any], width_m: float, blur_px: float) -> dict[str, Any]:
+    """``m`` with what the frame showed beside the measurement: ``beam_width_m``, the
+    beam's width measured from its edges, and ``blur_px``, the median ramp width of its
+    edges (motion blur and smear widen it; a frame beyond the measurer's ``max_blur_px``
+    is measured from the centroids of the beam's light). None where not measured."""
+
+    def num(x: float) -> float | None:
+        return float(x) if math.isfinite(x) else None
+
+    return {**m, "beam_width_m": num(width_m), "blur_px": num(blur_px)}
+
+
 def run(args: argparse.Namespace) -> int:
     from pipelines.process.frames import measurer_for
     from vision import load_calibration
@@ -128,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
     for path, image in images:
         measured = measurer.measure(image)
         m = _with_sds(*_calibration_included(measured.to_dict(), *stated_sds(measured, cal)))
+        m = _seen(m, measured.beam_width_m, measured.blur_px)
         if args.json:
             print(json.dumps({"image": path, **m}))
         else:

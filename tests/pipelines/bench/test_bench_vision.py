@@ -51,3 +51,36 @@ def test_the_fast_sets_large_swinging_beams_are_measured_within_their_uncertaint
     assert err["failed"] == 0, [m.reason for m in results if not m.ok]
     assert err["hub_cover"] == 1.0 and err["lat_cover"] == 1.0, err
     assert err["lat_rms"] < 0.1, err
+
+
+def test_the_smear_sets_hub_and_mode_move_either_way_under_uneven_light() -> None:
+    """The smear sets' exposures: the hub's and the first mode's shares with their own
+    signs (the beam lagging the hub near a stroke end counter-moves), the set's smear the
+    tip's where they add and a bound on every point's where they do not, each slice of the
+    exposure moving no point more than its step; the light 10-20 % uneven."""
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+    counter = 0
+    for _ in range(60):
+        poses = bv._smeared(rng, 0.020)
+        a, b = poses[0], poses[-1]
+        k = len(poses)
+        radius = bv.HUB_OFFSET_M + a.stations_m + a.longitudinal_m
+        # first to last slice midpoint: (k - 1) of the k slices
+        move = ((b.hub_angle_rad - a.hub_angle_rad) * radius + b.lateral_m - a.lateral_m) * k
+        move /= max(k - 1, 1)
+        hub_tip = (b.hub_angle_rad - a.hub_angle_rad) * radius[-1]
+        mode_tip = b.lateral_m[-1] - a.lateral_m[-1]
+        assert np.max(np.abs(move)) <= 0.020 * (1 + 1e-9)
+        assert np.max(np.abs(move)) / k <= bv.SMEAR_STEP_M * (1 + 1e-9)
+        if hub_tip * mode_tip < 0:
+            counter += 1
+            assert abs(move[-1]) < 0.020
+        else:
+            assert abs(move[-1]) == pytest.approx(0.020, rel=1e-9)
+    assert 20 <= counter <= 40  # about half of 60 (binomial sd 3.9)
+    for kind in ("smear-20", "smear-40"):
+        spec = bv._variety_spec(kind, np.random.default_rng(1), 1)
+        assert 0.10 <= spec.lighting_gradient <= 0.20
+    assert bv._variety_spec("low-30", np.random.default_rng(1), 1).lighting_gradient == 0.0

@@ -13,7 +13,7 @@ from vision import Calibration
 from vision.codec import encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.synthetic.render import render_frame
-from vision.synthetic.scene import BeamPose, SceneSpec
+from vision.synthetic.scene import BeamMotion, BeamPose, SceneSpec
 
 
 @pytest.fixture(scope="module")
@@ -37,6 +37,10 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     (d / "black.png").write_bytes(encode(frame.image * 0, "png"))
     (d / "junk.jpg").write_bytes(b"junk")
     (d / "truth.json").write_text(json.dumps({"tip_lateral_m": tr.tip_lateral_m}))
+    # the same beam turning at 2.4 rad/s (2 m/s at the tip) over a 6 ms exposure: the tip
+    # moves 12 mm across the beam, about 12 px (1.0 mm/px at the tip)
+    smeared = render_frame(spec, BeamMotion(pose, 2.0 / 0.843).exposure_poses(0.006, 0.008))
+    (d / "smeared.png").write_bytes(encode(smeared.image, "png"))
     return {p.name: p for p in d.iterdir()}
 
 
@@ -87,6 +91,24 @@ def test_json_carries_each_standard_uncertainty_beside_its_value(files, capsys) 
     # a calibration file that states no covariance adds nothing for the calibration
     for name in ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m"):
         assert good[f"calibration_{name}"] == 0.0 and f"calibration_{name}" not in black
+
+
+def test_json_carries_the_beam_width_and_the_blur_it_saw(files, capsys) -> None:
+    """Beside the measurement, what the frame showed: the beam's width from its edges
+    (the calibration's 19.05 mm is a hint, not copied) and the edges' ramp width, which
+    motion blur widens (a still frame's ~2 px of optics against a smeared one's)."""
+    argv = ["measure", *(str(files[k]) for k in ("frame.jpg", "smeared.png", "black.png"))]
+    assert main([*argv, "--calibration", str(files["cal.json"]), "--json"]) == 0
+    still, smeared, black = (json.loads(x) for x in capsys.readouterr().out.splitlines())
+    assert still["ok"] and smeared["ok"], (still["reason"], smeared["reason"])
+    for m in (still, smeared):
+        # within 0.2 mm (a fifth of a pixel) of the drawn width, and not the hint itself
+        assert m["beam_width_m"] == pytest.approx(0.01905, abs=2e-4)
+        assert m["beam_width_m"] != 0.01905
+    assert 1.0 < still["blur_px"] < 3.0  # the optics' blur (sigma 0.6 px) and the pixels
+    assert smeared["blur_px"] > 2 * still["blur_px"]
+    assert smeared["blur_px"] < 14.0  # no wider than the tip's 12 mm (12 px) and its optics
+    assert black["beam_width_m"] is None and black["blur_px"] is None
 
 
 def test_text_output(files, capsys) -> None:
