@@ -607,8 +607,10 @@ class Measurer:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """A smeared beam's centre points (plane, m): the centroids of its light on cuts
         along its local normal every 2 px, sampled every half pixel in the plane, the
-        background the median of each cut's ends (a time-average's centroid is the
-        time-averaged centre: mid-exposure for a motion nearly linear over it). Given as
+        background a line under each cut (its level the median of the cut's ends, its
+        slope the light's gradient across the cuts, :func:`_background_slope`; a
+        time-average's centroid is the time-averaged centre: mid-exposure for a motion
+        nearly linear over it). Given as
         two interleaved "edges" half the beam's width either side across the hub axis,
         which is how the centre-line fit sees edges (each centroid used once)."""
         px_m = self.px_m
@@ -642,8 +644,16 @@ class Measurer:
         if len(prof) < 20:
             raise FrameFailure("too few cuts across the smeared beam inside the image")
         m_edge = max(3, int(4 * px_m / (0.5 * px_m)))
-        level = np.median(np.concatenate([prof[:, :m_edge], prof[:, -m_edge:]], axis=1), axis=1)
-        excess = prof - level[:, None]
+        # The background under a cut: a line, its slope across the cut the light's
+        # gradient, smooth along the beam (a cut's own ends are too few pixels for it:
+        # a slope's error moves the centroid by its second moment over the window, the
+        # cube of the window's reach), its level the cut's own (the window is centred on
+        # the centroid, so a level's error moves it little).
+        slope = _background_slope(prof, t, m_edge, aq)
+        ends = np.r_[0:m_edge, len(t) - m_edge : len(t)]
+        flat = prof[:, ends] - slope[:, None] * t[None, ends]
+        level = np.median(flat, axis=1)
+        excess = prof - level[:, None] - slope[:, None] * t[None, :]
         # Re-centred once: the window then holds the light evenly about its centroid.
         half_n = len(t) // 2 - m_edge
         cen = np.zeros(len(prof))
@@ -727,6 +737,31 @@ class Measurer:
         a_tip = a_ref + dist * t[0]
         b_tip = b_ref + dist * t[1]
         return float(a_tip), float(b_tip)
+
+
+def _background_slope(
+    prof: NDArray[np.float64], t: NDArray[np.float64], m_edge: int, a: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The background's slope (DN per m across each cut, at stations ``a`` along the
+    beam) from the two ends of the cuts' profiles ``prof`` [cut, sample at ``t``]: each
+    cut's end medians give a slope, a quadratic in ``a`` fitted to them with Tukey's
+    weights (an end on the hub, the plate or the other side's clutter is an outlier)."""
+    left = np.median(prof[:, :m_edge], axis=1)
+    right = np.median(prof[:, -m_edge:], axis=1)
+    span = float(t[-m_edge:].mean() - t[:m_edge].mean())
+    raw = (right - left) / span
+    u = (a - a.mean()) / max(float(np.ptp(a)), 1e-12)
+    basis = np.column_stack([np.ones_like(u), u, u * u])
+    w = np.ones_like(u)
+    coef = np.zeros(3)
+    for _ in range(6):
+        sw = np.sqrt(w)
+        coef = np.linalg.lstsq(basis * sw[:, None], raw * sw, rcond=None)[0]
+        r = raw - basis @ coef
+        sig = 1.4826 * float(np.median(np.abs(r))) + 1e-12
+        z = r / (TUKEY_C * sig)
+        w = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
+    return np.asarray(basis @ coef, dtype=np.float64)
 
 
 def _rough_slope(

@@ -181,6 +181,21 @@ def draw_polygons(
 
 def render(bench: Bench, states: list[BeamState], rng: np.random.Generator) -> NDArray[np.uint8]:
     """The frame of an exposure over ``states`` (equally spaced in time), JPEG-decoded."""
+    return expose(bench, light(bench, states), rng)
+
+
+def expose(bench: Bench, lit: NDArray[np.float32], rng: np.random.Generator) -> NDArray[np.uint8]:
+    """The sensor's frame of the light ``lit`` (:func:`light`): noise, 8 bits, JPEG."""
+    img = lit + rng.normal(0.0, bench.noise_dn, lit.shape)
+    img = np.clip(np.round(img), 0, 255).astype(np.uint8)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, bench.jpeg_quality])
+    assert ok
+    return cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+
+
+def light(bench: Bench, states: list[BeamState]) -> NDArray[np.float32]:
+    """The light on the sensor (DN, float) over an exposure: the scene averaged over
+    ``states``, the lighting gradient and the optics' blur."""
     cam = bench.camera
     statics = [
         (_rect(REG_CENTER_M, [1, 0], PLATE_M / 2, PLATE_M / 2), bench.plate_dn),
@@ -209,12 +224,7 @@ def render(bench: Bench, states: list[BeamState], rng: np.random.Generator) -> N
             acc += draw(statics + dynamic(st), x0, y0, x1 - x0, y1 - y0)
         img[y0:y1, x0:x1] = acc / len(states)
     img = img * (1.0 + bench.gradient * np.linspace(-1.0, 1.0, W_PX)[None, :])
-    img = cv2.GaussianBlur(img, (0, 0), bench.optics_sigma_px)
-    img = img + rng.normal(0.0, bench.noise_dn, img.shape)
-    img = np.clip(np.round(img), 0, 255).astype(np.uint8)
-    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, bench.jpeg_quality])
-    assert ok
-    return cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    return np.asarray(cv2.GaussianBlur(img, (0, 0), bench.optics_sigma_px), dtype=np.float32)
 
 
 def random_camera(rng: np.random.Generator) -> Camera:

@@ -28,16 +28,8 @@ CASES = {
     "bar-smear-20-even-light": ((0.2, 0.04), 0.020, 0.0, 4, 4),
     "bar-smear-20": ((0.2, 0.04), 0.020, 0.15, 8, 8),
 }
-#: Known to fail: the stated uncertainty of smeared frames is too small on this
-#: renderer's frames: 1-3 of 12 frames at 3-4 stated sd (0.1-0.3 mm at the tip), both
-#: ways, in both of the measurer's paths (edges up to 6 px of smear, the centroids of
-#: the light beyond). A lighting gradient adds a bias in the centroid path (mean tip
-#: error +0.08 mm over 12 smear-40 frames, +0.02 mm in even light): the background under
-#: a cut is taken flat (the median of its ends). Tried and backed out: a background line
-#: per cut through 4 px or 8 px ends (its noise cost our own smear-20 set 0.032 -> 0.079
-#: mm RMS, and an end on something not background put one frame at 5.5 sd), a slope
-#: fitted along the whole beam, and a window cut to the band (it truncated light: 10 sd).
-KNOWN = {"bar-smear-20": "smeared frames: stated sd too small (3-4 sd), lighting gradient bias"}
+#: Known to fail (none now): case -> reason, run as strict xfails.
+KNOWN: dict[str, str] = {}
 
 
 @pytest.mark.slow
