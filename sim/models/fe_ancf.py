@@ -191,6 +191,92 @@ def _material_damped_force(
     return elastic + damp.reshape(elastic.shape)
 
 
+# The paper law's pointwise force and its exact derivatives (:func:`_paper_force_jacobian`).
+# With n = |g|^2, c = g x h and the energy density W(n, c) = EA/2 (n^1/2 - 1)^2 + EI/2 c^2 / n^3,
+# every derivative is a combination of four vectors of (g, h) and of the rates u = (g', h'):
+# grad n = (2 g, 0), grad c = (perp'(h), perp(g)), and their rates' counterparts
+# (Hess n) u = (2 g', 0), (Hess c) u = (perp'(h'), perp(g')); _VMAP makes all four, (4 x 4)
+# per point, from [g, h, g', h'] in one product.
+_VMAP = np.zeros((4, 4, 8))
+_VMAP[0, 0, 0] = _VMAP[0, 1, 1] = 2.0
+_VMAP[1, 0, 3], _VMAP[1, 1, 2], _VMAP[1, 2, 1], _VMAP[1, 3, 0] = 1.0, -1.0, -1.0, 1.0
+_VMAP[2, 0, 4] = _VMAP[2, 1, 5] = 2.0
+_VMAP[3, 0, 7], _VMAP[3, 1, 6], _VMAP[3, 2, 5], _VMAP[3, 3, 4] = 1.0, -1.0, -1.0, 1.0
+_VMAP_T = np.ascontiguousarray(_VMAP.reshape(16, 8).T)  # (8, 16)
+# the Jacobians' coefficient matrices G (J = V^T G V), laid out (vector k, by the
+# coordinates or the rates, vector l), as linear maps of [W_nn, W_nc, W_cc, t1, t2, t3] (the
+# t_i are the a1 terms): _GMAP the entries of weight 1, _GMAP_A1 those of weight a1
+_GMAP = np.zeros((6, 4, 2, 4))
+_GMAP_A1 = np.zeros((6, 4, 2, 4))
+for (_i, _j), (_w, _t) in {(0, 0): (0, 3), (0, 1): (1, 4), (1, 0): (1, 4), (1, 1): (2, 5)}.items():
+    _GMAP[_w, _i, 0, _j] = _GMAP[_t, _i, 0, _j] = 1.0
+    _GMAP_A1[_w, _i, 1, _j] = 1.0  # by the rates: a1 Hess W
+for _w, (_i, _j) in ((0, (0, 2)), (1, (0, 3)), (1, (1, 2)), (2, (1, 3))):
+    _GMAP_A1[_w, _i, 0, _j] = _GMAP_A1[_w, _j, 0, _i] = 1.0
+# the constant Hessians of n (2 diag(1, 1, 0, 0)) and c, weighted by [alpha, beta] (by the
+# coordinates) and [a1 W_n, a1 W_c] (by the rates); laid out (out, coordinates / rates, in)
+_CMAP4 = np.zeros((4, 4, 2, 4))
+for _b, _w in ((0, 0), (1, 2)):
+    _CMAP4[_w, 0, _b, 0] = _CMAP4[_w, 1, _b, 1] = 2.0
+    _CMAP4[_w + 1, 0, _b, 3] = _CMAP4[_w + 1, 3, _b, 0] = 1.0
+    _CMAP4[_w + 1, 1, _b, 2] = _CMAP4[_w + 1, 2, _b, 1] = -1.0
+_CMAP = _CMAP4.reshape(4, 32)
+
+
+def paper_gmap(a1: float) -> FloatArray:
+    """:func:`_paper_force_jacobian`'s coefficient map for the damping ``a1``, (6, 32)."""
+    return np.asarray((_GMAP + a1 * _GMAP_A1).reshape(6, 32), dtype=np.float64)
+
+
+def _paper_force_jacobian(
+    x8: FloatArray, ea: FloatArray, ei: FloatArray, a1: float, gmap: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The paper law's pointwise force ``grad W + a1 (Hess W) u`` and its exact Jacobian,
+    in closed form: ``x8`` (8, M) rows ``[g, h, u]`` (``u`` the rates of ``g, h``), ``ea``,
+    ``ei`` (M,) and :func:`paper_gmap` ``(a1)`` -> force (M, 4) and Jacobians (M, 4 out, 8 in),
+    by ``(g, h)`` then by ``u``.
+
+    With ``V`` the four vectors of ``_VMAP``, ``N = grad n . u``, ``C = grad c . u``:
+    ``f = V^T [alpha, beta, a1 W_n, a1 W_c]`` (``alpha = W_n + a1 (W_nn N + W_nc C)``,
+    ``beta = W_c + a1 (W_nc N + W_cc C)``); ``df/d(g, h) = V^T G V + alpha Hess n + beta
+    Hess c`` with the symmetric ``G = [[W_nn + t1, W_nc + t2, a1 W_nn, a1 W_nc], [W_nc + t2,
+    W_cc + t3, a1 W_nc, a1 W_cc], [a1 W_nn, a1 W_nc, 0, 0], [a1 W_nc, a1 W_cc, 0, 0]]``
+    (``t1 = a1 (W_nnn N + W_nnc C)``, ``t2 = a1 (W_nnc N + W_ncc C)``, ``t3 = a1 W_ncc N``:
+    the third derivatives along ``u``); ``df/du = a1 Hess W``. The arrays are small, so the
+    cost is the number of numpy calls: about forty here, against eight complex force
+    evaluations for complex-step derivatives."""
+    g1, g2, h1, h2, d1, d2, e1, e2 = x8
+    inv_n = 1.0 / (g1 * g1 + g2 * g2)
+    isq = np.sqrt(inv_n)
+    c = g1 * h2 - g2 * h1
+    e3 = ei * (inv_n * inv_n * inv_n)  # EI n^-3 = W_cc
+    ci = c * inv_n
+    e3ci = e3 * ci  # EI c n^-4
+    ea4 = ea * (isq * inv_n) * 0.25  # EA n^-3/2 / 4
+    w_n = ea * (1.0 - isq) * 0.5 - (e3ci * c) * 1.5  # not ea - ea isq: |g| - 1 ~ 1e-6
+    w_c = e3 * c
+    w_nn = ea4 + (e3ci * ci) * 6.0
+    w_nc = e3ci * -3.0
+    w_ncc = (e3 * inv_n) * -3.0
+    w_nnc = (w_nc * inv_n) * -4.0
+    w_nnn = (ea4 * inv_n) * -1.5 - (e3ci * ci * inv_n) * 30.0
+    a1n = (g1 * d1 + g2 * d2) * (2.0 * a1)  # a1 N
+    a1c = ((d1 * h2 - d2 * h1) + (g1 * e2 - g2 * e1)) * a1  # a1 C
+    t2 = w_nnc * a1n + w_ncc * a1c
+    coef = np.array([w_nn, w_nc, e3, w_nnn * a1n + w_nnc * a1c, t2, w_ncc * a1n])
+    weights = np.array(
+        [w_n + (w_nn * a1n + w_nc * a1c), w_c + (w_nc * a1n + e3 * a1c), w_n * a1, w_c * a1]
+    )  # (4, M): alpha, beta, a1 W_n, a1 W_c
+    m = inv_n.size
+    v = (x8.T @ _VMAP_T).reshape(m, 4, 4)  # (M, vector, component)
+    vt = v.transpose(0, 2, 1)
+    force = (vt @ weights.T[:, :, None])[..., 0]  # (M, 4)
+    gv = (coef.T @ gmap).reshape(m, 8, 4) @ v  # (M, (vector, coordinates / rates), in)
+    jac = vt @ gv.reshape(m, 4, 8)
+    jac += (weights.T @ _CMAP).reshape(m, 4, 8)
+    return force, jac
+
+
 @dataclass
 class AncfBeam:
     """A uniform beam of ``n_elements`` ANCF elements clamped at ``(hub_offset, 0)``, axis +x."""
@@ -448,6 +534,7 @@ class AncfSystem:
         if npert == 8:
             self._perturbation[1, :, 4:] = 1j * _CS_STEP * np.eye(4)
         self._stiffness: dict[tuple[int, ...], tuple[FloatArray, FloatArray]] = {}
+        self._gmap = paper_gmap(a1)
 
     def full(self, d: FloatArray) -> FloatArray:
         e = self.fe.e_ref.copy()
@@ -555,7 +642,39 @@ class AncfSystem:
 
     def rhs_jac_stages(self, ts: FloatArray, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
         """:meth:`rhs_stages` and :meth:`jac_stages` at the same points in one evaluation
-        of the force: (k,), (k, n) -> (k, n), (k, n, n)."""
+        of the force: (k,), (k, n) -> (k, n), (k, n, n). The paper's law takes its
+        pointwise derivatives in closed form (:func:`_paper_force_jacobian`), the material
+        law and the undamped beam by complex step (:meth:`_force_derivatives`: four complex
+        evaluations without damping cost less than the closed form); both are exact to
+        rounding."""
+        if self.damping_law != "paper" or self.a1 == 0.0:
+            return self._rhs_jac_stages_complex_step(ts, ys)
+        nf = self.nf
+        npts = ts.size
+        om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
+        shape = gh.shape[1:]  # (P, k)
+        if shape not in self._stiffness:
+            self._force(gh, dgh, 1)  # caches the per-point EA, EI
+        ea, ei = self._stiffness[shape]
+        force, local = _paper_force_jacobian(
+            np.concatenate([gh, dgh]).reshape(8, -1), ea, ei, self.a1, self._gmap
+        )  # (P k, 4), (P k, 4 out, 8 in)
+        npt = shape[0]
+        # M^-1 sum_p B_p^T J_p B_p for every stage: J_p B_p per point, then one product
+        # with M^-1 B^T over (point, component): kk (k, nf, 2 nf) is [M^-1 dF/dd, M^-1 dF/dv]
+        jb = (local.reshape(npt, -1, 4) @ self.b_pts).reshape(npt, npts, 8 * nf)
+        kk = self.minv_bt_pts @ jb.transpose(1, 0, 2).reshape(npts, npt * 4, 2 * nf)
+        jac = np.zeros((npts, 2 * nf, 2 * nf))
+        jac[:, :nf, nf:] = self.eye
+        weights = np.array([np.ones(npts), om * om, -al, -2.0 * om])  # (4, k)
+        jac[:, nf:, :] = (weights.T @ self._jac_frame).reshape(npts, nf, 2 * nf) - kk
+        gen = force.T.reshape(4 * npt, npts)
+        return self._rhs_from_force(om, al, d, v, gen), jac
+
+    def _rhs_jac_stages_complex_step(
+        self, ts: FloatArray, ys: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`rhs_jac_stages` with complex-step pointwise derivatives (any law)."""
         nf = self.nf
         npts = ts.size
         om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
