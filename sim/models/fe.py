@@ -133,9 +133,10 @@ def _make_system(
     a0: float,
     a1: float,
     damping_law: str,
+    fused: bool = False,
 ) -> _System:
     if formulation == "corot":
-        return AncfSystem(beam, n_elements, drive, a0, a1, damping_law)
+        return AncfSystem(beam, n_elements, drive, a0, a1, damping_law, fused)
     return FlxdynSystem(beam, n_elements, drive, a0, a1)
 
 
@@ -249,7 +250,8 @@ def simulate_fe(
         raise SimInputError(
             "stages", f"above 3 need fixed_step_s and formulation 'corot', got {stages!r}"
         )
-    system = _make_system(form, beam, ne, drive, a0, a1, law)
+    # the fused evaluation (closed-form Jacobians) at a fixed step only: see AncfSystem
+    system = _make_system(form, beam, ne, drive, a0, a1, law, fixed_step_s is not None)
     if initial_state is None:
         y0 = system.initial_state()
     else:

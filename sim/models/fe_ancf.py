@@ -455,6 +455,13 @@ class AncfSystem:
     ANCF cable. The two differ by the geometric part ``a1 (N d2eps + M d2kappa) v``: a force
     from the current axial force and bending moment times the rotation rate of the centre
     line relative to the hub, which is not a strain rate. ``a0 M v`` is the same in both.
+
+    ``fused`` (default): with the paper law and ``a1 > 0``, :meth:`rhs_stages` and
+    :meth:`rhs_jac_stages` take the fused path (closed-form pointwise Jacobians, one
+    product for the accelerations); ``False`` keeps the complex-step path. Both agree to
+    rounding, but an adaptive step control turns rounding into changes of the size of its
+    tolerance (a step more or less), so :func:`sim.models.fe.simulate_fe` fuses only at a
+    fixed step, and its adaptive runs stay bit for bit what they were.
     """
 
     def __init__(
@@ -465,6 +472,7 @@ class AncfSystem:
         a0: float,
         a1: float,
         damping_law: str = "paper",
+        fused: bool = True,
     ) -> None:
         self.damping_law = check_choice("damping_law", damping_law, DAMPING_LAWS)
         self.fe = AncfBeam(beam, n_elements)
@@ -535,6 +543,25 @@ class AncfSystem:
             self._perturbation[1, :, 4:] = 1j * _CS_STEP * np.eye(4)
         self._stiffness: dict[tuple[int, ...], tuple[FloatArray, FloatArray]] = {}
         self._gmap = paper_gmap(a1)
+        # the damped paper law (the reciprocating scene's) evaluates fused: [g, h, g', h'] at
+        # every point from the states in one product, the accelerations from
+        # [d; v; force; 1] in one product weighted by (1, Omega^2, -alpha, -2 Omega); the
+        # arrays are small, so the number of numpy calls is the cost
+        self._fused = fused and self.damping_law == "paper" and a1 != 0.0
+        npt4 = 4 * npt
+        self._x8_map = np.zeros((2 * npt4, 2 * nf))
+        self._x8_map[:npt4, :nf] = self.bf_flat
+        self._x8_map[npt4:, nf:] = self.bf_flat
+        self._x8_0 = np.concatenate([self.gh0.reshape(-1), np.zeros(npt4)])[:, None]
+        acc_map = np.zeros((4, nf, 2 * nf + npt4 + 1))
+        acc_map[0, :, nf : 2 * nf] = -self.a0 * self.eye
+        acc_map[0, :, 2 * nf : 2 * nf + npt4] = -self.minv_bt
+        acc_map[1, :, :nf], acc_map[1, :, -1] = self.m_ff, self.m_e0
+        acc_map[2, :, :nf], acc_map[2, :, -1] = self.minv_mj_ff, self.mj_e0
+        acc_map[3, :, nf : 2 * nf] = self.minv_mj_ff
+        self._acc_map = acc_map.reshape(4 * nf, -1)
+        self._hub_cache: dict[bytes, FloatArray] = {}
+        self._jac_template: dict[int, FloatArray] = {}
 
     def full(self, d: FloatArray) -> FloatArray:
         e = self.fe.e_ref.copy()
@@ -617,8 +644,44 @@ class AncfSystem:
         )  # fmt: skip
         return np.concatenate([v, acc]).T
 
+    def _hub_weights(self, ts: FloatArray) -> FloatArray:
+        """(4, k) rows ``1, Omega^2, -alpha, -2 Omega`` at the times ``ts``, kept for the
+        last few time sets (a Newton iteration evaluates its stages' times again; the key
+        is the times' bytes, so a changed array is never mistaken). Read only."""
+        key = ts.tobytes()
+        w = self._hub_cache.get(key)
+        if w is None:
+            om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
+            al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
+            w = np.array([np.ones(ts.size), om * om, -al, -2.0 * om])
+            if len(self._hub_cache) >= 4:
+                self._hub_cache.clear()
+            self._hub_cache[key] = w
+        return w
+
+    def _fused_points(self, ys: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``[g, h, g', h']`` (8, P k) at every point and stage, and the points' EA, EI."""
+        x8 = (self._x8_map @ ys.T + self._x8_0).reshape(8, -1)
+        shape = (self.bf.shape[1], ys.shape[0])
+        if shape not in self._stiffness:
+            self._force(x8[:4].reshape(4, *shape), x8[4:].reshape(4, *shape), 1)  # caches
+        ea, ei = self._stiffness[shape]
+        return x8, ea, ei
+
+    def _fused_rhs(self, w: FloatArray, ys: FloatArray, gen: FloatArray) -> FloatArray:
+        """(k, n_state) right-hand sides from the forces ``gen`` (4 P, k)."""
+        k, nf = ys.shape[0], self.nf
+        x = np.concatenate([ys.T, gen, w[:1]])  # [d; v; force; 1]
+        acc = ((self._acc_map @ x).reshape(4, nf, k) * w[:, None, :]).sum(axis=0)
+        return np.concatenate([ys[:, nf:], acc.T], axis=1)
+
     def rhs_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
         """The right-hand side at several points at once: (k,), (k, n_state) -> (k, n_state)."""
+        if self._fused:
+            w = self._hub_weights(ts)
+            x8, ea, ei = self._fused_points(ys)
+            gen = _damped_force_fast(x8[:4], x8[4:], ea, ei, self.a1)
+            return self._fused_rhs(w, ys, gen.reshape(-1, ys.shape[0]))
         om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
         return self._rhs_from_force(om, al, d, v, self._force(gh, dgh, 1))
 
@@ -647,29 +710,26 @@ class AncfSystem:
         law and the undamped beam by complex step (:meth:`_force_derivatives`: four complex
         evaluations without damping cost less than the closed form); both are exact to
         rounding."""
-        if self.damping_law != "paper" or self.a1 == 0.0:
+        if not self._fused:
             return self._rhs_jac_stages_complex_step(ts, ys)
         nf = self.nf
         npts = ts.size
-        om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
-        shape = gh.shape[1:]  # (P, k)
-        if shape not in self._stiffness:
-            self._force(gh, dgh, 1)  # caches the per-point EA, EI
-        ea, ei = self._stiffness[shape]
-        force, local = _paper_force_jacobian(
-            np.concatenate([gh, dgh]).reshape(8, -1), ea, ei, self.a1, self._gmap
-        )  # (P k, 4), (P k, 4 out, 8 in)
-        npt = shape[0]
+        w = self._hub_weights(ts)
+        x8, ea, ei = self._fused_points(ys)
+        force, local = _paper_force_jacobian(x8, ea, ei, self.a1, self._gmap)
+        npt = self.bf.shape[1]
         # M^-1 sum_p B_p^T J_p B_p for every stage: J_p B_p per point, then one product
         # with M^-1 B^T over (point, component): kk (k, nf, 2 nf) is [M^-1 dF/dd, M^-1 dF/dv]
         jb = (local.reshape(npt, -1, 4) @ self.b_pts).reshape(npt, npts, 8 * nf)
         kk = self.minv_bt_pts @ jb.transpose(1, 0, 2).reshape(npts, npt * 4, 2 * nf)
-        jac = np.zeros((npts, 2 * nf, 2 * nf))
-        jac[:, :nf, nf:] = self.eye
-        weights = np.array([np.ones(npts), om * om, -al, -2.0 * om])  # (4, k)
-        jac[:, nf:, :] = (weights.T @ self._jac_frame).reshape(npts, nf, 2 * nf) - kk
-        gen = force.T.reshape(4 * npt, npts)
-        return self._rhs_from_force(om, al, d, v, gen), jac
+        template = self._jac_template.get(npts)
+        if template is None:
+            template = np.zeros((npts, 2 * nf, 2 * nf))
+            template[:, :nf, nf:] = self.eye
+            self._jac_template[npts] = template
+        jac = template.copy()
+        jac[:, nf:, :] = (w.T @ self._jac_frame).reshape(npts, nf, 2 * nf) - kk
+        return self._fused_rhs(w, ys, force.T.reshape(4 * npt, npts)), jac
 
     def _rhs_jac_stages_complex_step(
         self, ts: FloatArray, ys: FloatArray
@@ -702,8 +762,10 @@ class AncfSystem:
         return self.rhs_jac_stages(ts, ys)[1]
 
     def jac(self, t: float, y: FloatArray) -> FloatArray:
-        """Exact Jacobian of :meth:`rhs` (n_state, n_state)."""
-        return self.jac_stages(np.array([t]), y[None, :])[0]
+        """Exact Jacobian of :meth:`rhs` (n_state, n_state), by complex step: scipy's
+        integrators (BDF, Radau: the references) call it a point at a time, where the
+        closed form saves nothing, and their runs stay bit for bit what they were."""
+        return self._rhs_jac_stages_complex_step(np.array([t]), y[None, :])[1][0]
 
     def initial_state(self) -> FloatArray:
         return np.zeros(self.n_state)
