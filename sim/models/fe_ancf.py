@@ -121,7 +121,12 @@ def _bincount(idx: NDArray[np.intp], weights: FloatArray, minlength: int) -> Flo
 
 
 def _damped_force_fast(
-    gh: FloatArray, dgh: FloatArray, ea: FloatArray, ei: FloatArray, a1: float
+    gh: FloatArray,
+    dgh: FloatArray,
+    ea: FloatArray,
+    ei: FloatArray,
+    a1: float,
+    out: FloatArray | None = None,
 ) -> FloatArray:
     """Energy gradient plus ``a1`` times its rate along ``dgh``: (4, P, ...) each ->
     (4 P, ...). Pointwise and analytic, so it also takes complex arguments (complex-step
@@ -161,6 +166,9 @@ def _damped_force_fast(
             -(b1a * g2 + b1b * d2),
             b1a * g1 + b1b * d1,
         ]
+    if out is not None:  # (4, M) rows (the same numbers, written in place)
+        out[0], out[1], out[2], out[3] = parts
+        return out
     return np.concatenate(parts).reshape(4 * n.shape[0], *n.shape[1:])
 
 
@@ -246,28 +254,34 @@ def _paper_force_jacobian(
     cost is the number of numpy calls: about forty here, against eight complex force
     evaluations for complex-step derivatives."""
     g1, g2, h1, h2, d1, d2, e1, e2 = x8
+    m = g1.size
+    # coef (6, M): W_nn, W_nc, W_cc, t1, t2, t3; weights (4, M): alpha, beta, a1 W_n, a1 W_c;
+    # each row is its last operation's output (no packing afterwards)
+    buf = np.empty((10, m))
+    coef, weights = buf[:6], buf[6:]
     inv_n = 1.0 / (g1 * g1 + g2 * g2)
     isq = np.sqrt(inv_n)
     c = g1 * h2 - g2 * h1
-    e3 = ei * (inv_n * inv_n * inv_n)  # EI n^-3 = W_cc
+    e3 = np.multiply(ei, inv_n * inv_n * inv_n, out=coef[2])  # EI n^-3 = W_cc
     ci = c * inv_n
     e3ci = e3 * ci  # EI c n^-4
     ea4 = ea * (isq * inv_n) * 0.25  # EA n^-3/2 / 4
     w_n = ea * (1.0 - isq) * 0.5 - (e3ci * c) * 1.5  # not ea - ea isq: |g| - 1 ~ 1e-6
     w_c = e3 * c
-    w_nn = ea4 + (e3ci * ci) * 6.0
-    w_nc = e3ci * -3.0
+    w_nn = np.add(ea4, (e3ci * ci) * 6.0, out=coef[0])
+    w_nc = np.multiply(e3ci, -3.0, out=coef[1])
     w_ncc = (e3 * inv_n) * -3.0
     w_nnc = (w_nc * inv_n) * -4.0
     w_nnn = (ea4 * inv_n) * -1.5 - (e3ci * ci * inv_n) * 30.0
     a1n = (g1 * d1 + g2 * d2) * (2.0 * a1)  # a1 N
     a1c = ((d1 * h2 - d2 * h1) + (g1 * e2 - g2 * e1)) * a1  # a1 C
-    t2 = w_nnc * a1n + w_ncc * a1c
-    coef = np.array([w_nn, w_nc, e3, w_nnn * a1n + w_nnc * a1c, t2, w_ncc * a1n])
-    weights = np.array(
-        [w_n + (w_nn * a1n + w_nc * a1c), w_c + (w_nc * a1n + e3 * a1c), w_n * a1, w_c * a1]
-    )  # (4, M): alpha, beta, a1 W_n, a1 W_c
-    m = inv_n.size
+    np.add(w_nnn * a1n, w_nnc * a1c, out=coef[3])
+    np.add(w_nnc * a1n, w_ncc * a1c, out=coef[4])
+    np.multiply(w_ncc, a1n, out=coef[5])
+    np.add(w_n, w_nn * a1n + w_nc * a1c, out=weights[0])
+    np.add(w_c, w_nc * a1n + e3 * a1c, out=weights[1])
+    np.multiply(w_n, a1, out=weights[2])
+    np.multiply(w_c, a1, out=weights[3])
     v = (x8.T @ _VMAP_T).reshape(m, 4, 4)  # (M, vector, component)
     vt = v.transpose(0, 2, 1)
     force = (vt @ weights.T[:, :, None])[..., 0]  # (M, 4)
@@ -668,10 +682,19 @@ class AncfSystem:
         ea, ei = self._stiffness[shape]
         return x8, ea, ei
 
-    def _fused_rhs(self, w: FloatArray, ys: FloatArray, gen: FloatArray) -> FloatArray:
-        """(k, n_state) right-hand sides from the forces ``gen`` (4 P, k)."""
+    def _fused_operand(self, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``[d; v; force; 1]`` (2 nf + 4 P + 1, k) with the force rows to be filled, and
+        those rows as (4, P k), component by component."""
+        k, n = ys.shape
+        npt4 = 4 * self.bf.shape[1]
+        x = np.empty((n + npt4 + 1, k))
+        x[:n] = ys.T
+        x[-1] = 1.0
+        return x, x[n : n + npt4].reshape(4, -1)
+
+    def _fused_rhs(self, w: FloatArray, ys: FloatArray, x: FloatArray) -> FloatArray:
+        """(k, n_state) right-hand sides from :meth:`_fused_operand`'s ``x`` filled."""
         k, nf = ys.shape[0], self.nf
-        x = np.concatenate([ys.T, gen, w[:1]])  # [d; v; force; 1]
         acc = ((self._acc_map @ x).reshape(4, nf, k) * w[:, None, :]).sum(axis=0)
         return np.concatenate([ys[:, nf:], acc.T], axis=1)
 
@@ -680,8 +703,9 @@ class AncfSystem:
         if self._fused:
             w = self._hub_weights(ts)
             x8, ea, ei = self._fused_points(ys)
-            gen = _damped_force_fast(x8[:4], x8[4:], ea, ei, self.a1)
-            return self._fused_rhs(w, ys, gen.reshape(-1, ys.shape[0]))
+            x, force = self._fused_operand(ys)
+            _damped_force_fast(x8[:4], x8[4:], ea, ei, self.a1, out=force)
+            return self._fused_rhs(w, ys, x)
         om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
         return self._rhs_from_force(om, al, d, v, self._force(gh, dgh, 1))
 
@@ -729,7 +753,9 @@ class AncfSystem:
             self._jac_template[npts] = template
         jac = template.copy()
         jac[:, nf:, :] = (w.T @ self._jac_frame).reshape(npts, nf, 2 * nf) - kk
-        return self._fused_rhs(w, ys, force.T.reshape(4 * npt, npts)), jac
+        x, force_rows = self._fused_operand(ys)
+        np.copyto(force_rows, force.T)
+        return self._fused_rhs(w, ys, x), jac
 
     def _rhs_jac_stages_complex_step(
         self, ts: FloatArray, ys: FloatArray

@@ -647,7 +647,7 @@ def _newton_second_order(
             blocks = (
                 (neg_coef @ kdv).reshape(ns, ns, m, m).transpose(0, 2, 1, 3).reshape(ns * m, ns * m)
             )
-            blocks.flat[:: ns * m + 1] += 1.0
+            blocks += eye  # adding zeros elsewhere changes nothing
             lu = _lu(blocks)
             dz_norm_old = None
         else:
@@ -676,6 +676,8 @@ def _newton_second_order(
         # Hairer's test: the remaining error of a contraction at rate theta is about
         # theta / (1 - theta) |dz|; on the first iteration theta is the last one measured
         if faccon * dz_norm < tol:
+            if persist:  # a fixed step needs F at the stages only to check it is finite
+                return True, k + 1, z, js, f, faccon
             return True, k + 1, z, js, f + (js @ dz[:, :, None])[..., 0], faccon
         dz_norm_old = dz_norm
     return False, k + 1, z, js, f, faccon
