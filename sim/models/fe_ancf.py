@@ -240,9 +240,10 @@ def _paper_force_jacobian(
     x8: FloatArray, ea: FloatArray, ei: FloatArray, a1: float, gmap: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """The paper law's pointwise force ``grad W + a1 (Hess W) u`` and its exact Jacobian,
-    in closed form: ``x8`` (8, M) rows ``[g, h, u]`` (``u`` the rates of ``g, h``), ``ea``,
-    ``ei`` (M,) and :func:`paper_gmap` ``(a1)`` -> force (M, 4) and Jacobians (M, 4 out, 8 in),
-    by ``(g, h)`` then by ``u``.
+    in closed form: ``x8`` (8, M) rows ``[g, h, u]`` (``u`` the rates of ``g, h``), ``ea``
+    (2, M) rows ``EA / 2``, ``EA / 4`` (exact scalings), ``ei`` (M,) and
+    :func:`paper_gmap` ``(a1)`` -> force (M, 4) and Jacobians (M, 4 out, 8 in), by
+    ``(g, h)`` then by ``u``.
 
     With ``V`` the four vectors of ``_VMAP``, ``N = grad n . u``, ``C = grad c . u``:
     ``f = V^T [alpha, beta, a1 W_n, a1 W_c]`` (``alpha = W_n + a1 (W_nn N + W_nc C)``,
@@ -265,8 +266,8 @@ def _paper_force_jacobian(
     e3 = np.multiply(ei, inv_n * inv_n * inv_n, out=coef[2])  # EI n^-3 = W_cc
     ci = c * inv_n
     e3ci = e3 * ci  # EI c n^-4
-    ea4 = ea * (isq * inv_n) * 0.25  # EA n^-3/2 / 4
-    w_n = ea * (1.0 - isq) * 0.5 - (e3ci * c) * 1.5  # not ea - ea isq: |g| - 1 ~ 1e-6
+    ea4 = ea[1] * (isq * inv_n)  # EA n^-3/2 / 4
+    w_n = ea[0] * (1.0 - isq) - (e3ci * c) * 1.5  # not ea - ea isq: |g| - 1 ~ 1e-6
     w_c = e3 * c
     w_nn = np.add(ea4, (e3ci * ci) * 6.0, out=coef[0])
     w_nc = np.multiply(e3ci, -3.0, out=coef[1])
@@ -575,6 +576,7 @@ class AncfSystem:
         acc_map[3, :, nf : 2 * nf] = self.minv_mj_ff
         self._acc_map = acc_map.reshape(4 * nf, -1)
         self._hub_cache: dict[bytes, FloatArray] = {}
+        self._ea_halves: dict[int, FloatArray] = {}
         self._jac_template: dict[int, FloatArray] = {}
 
     def full(self, d: FloatArray) -> FloatArray:
@@ -682,6 +684,13 @@ class AncfSystem:
         ea, ei = self._stiffness[shape]
         return x8, ea, ei
 
+    def _fused_ea(self, ea: FloatArray) -> FloatArray:
+        """``[EA / 2, EA / 4]`` (2, M) for :func:`_paper_force_jacobian`, kept per size."""
+        halves = self._ea_halves.get(ea.size)
+        if halves is None:
+            halves = self._ea_halves[ea.size] = np.array([0.5 * ea, 0.25 * ea])
+        return halves
+
     def _fused_operand(self, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``[d; v; force; 1]`` (2 nf + 4 P + 1, k) with the force rows to be filled, and
         those rows as (4, P k), component by component."""
@@ -740,7 +749,7 @@ class AncfSystem:
         npts = ts.size
         w = self._hub_weights(ts)
         x8, ea, ei = self._fused_points(ys)
-        force, local = _paper_force_jacobian(x8, ea, ei, self.a1, self._gmap)
+        force, local = _paper_force_jacobian(x8, self._fused_ea(ea), ei, self.a1, self._gmap)
         npt = self.bf.shape[1]
         # M^-1 sum_p B_p^T J_p B_p for every stage: J_p B_p per point, then one product
         # with M^-1 B^T over (point, component): kk (k, nf, 2 nf) is [M^-1 dF/dd, M^-1 dF/dv]

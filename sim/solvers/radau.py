@@ -638,11 +638,12 @@ def _newton_second_order(
             f, js = rhs_jac_stages(ts, ys)
             stats.n_jac += ns
             stats.n_lu += 1
-            if not (_finite(f) and _finite(js)):
+            if not _finite(f):
                 return False, k + 1, z, js, f, faccon
             jac_k = k
             # [Kd of each stage; Kv of each stage] (2 s, m m): the stage Jacobians'
-            # acceleration rows
+            # acceleration rows (a non-finite one makes the factors and so dz non-finite,
+            # which fails the iteration below)
             kdv = js[:, m:, :].reshape(ns, m, 2, m).transpose(2, 0, 1, 3).reshape(2 * ns, m * m)
             blocks = (
                 (neg_coef @ kdv).reshape(ns, ns, m, m).transpose(0, 2, 1, 3).reshape(ns * m, ns * m)
