@@ -15,10 +15,12 @@ stiff, *nonlinear* beams with Kelvin-Voigt damping:
   the solution's, so one evaluation per step is enough (1.0 per attempt, 2.1 iterations,
   measured on the paper's scene at rtol = atol = 1e-4); when the iteration contracts slower
   than :data:`JAC_REFRESH_RATE` they are re-evaluated at the current iterate (full Newton);
-- the function and its Jacobians come from one call (``rhs_jac_stages``: the complex-step
-  derivatives carry the function in their real part), the three stages in one vectorised
-  evaluation, and the right-hand side at the step's end is the last stage's, linearised to
-  the final iterate (the stage at c = 1 is the new point);
+- the function and its Jacobians come from one call (``rhs_jac_stages``: complex-step
+  derivatives carry the function in their real part; the FE beam's paper law at a fixed
+  step has them in closed form), all stages in one vectorised evaluation, and the
+  right-hand side at the step's end is the last stage's, linearised to the final iterate
+  (the stage at c = 1 is the new point; a fixed step skips the linearisation, it only
+  checks that F is finite);
 - LU factors straight from LAPACK, norms and finiteness checks with the fewest numpy calls:
   the systems are small (48 unknowns for two elements), so call overhead is the cost.
 
