@@ -514,6 +514,7 @@ def test_closed_form_stage_jacobians_match_complex_step(
     # (a factor or a sign) would be off by its own size
     drive = SinusoidDrive(0.5, 3.0, 0.2)  # not the paper's drive
     system = AncfSystem(rig_beam, n_elements, drive, 0.3, 0.07)
+    plain = AncfSystem(rig_beam, n_elements, drive, 0.3, 0.07, fused=False)
     rng = np.random.default_rng(11)
     eps = np.finfo(float).eps
     for scale_d, scale_v in ((1e-4, 1e-3), (3e-2, 1.0), (0.1, 30.0)):
@@ -529,6 +530,15 @@ def test_closed_form_stage_jacobians_match_complex_step(
         assert np.all(np.abs(jac - jac_cs) <= 64 * eps * column)
         # and the complex-step ones are what the closed form replaced, not the same code
         assert np.any(jac != jac_cs)
+        # the fused right-hand side (one product for the accelerations) against the plain
+        # one, the same rounding argument; the plain system is the complex-step path
+        rhs, rhs_plain = system.rhs_stages(ts, ys), plain.rhs_stages(ts, ys)
+        assert np.all(
+            np.abs(rhs - rhs_plain) <= 64 * eps * np.abs(rhs_plain).max(axis=1, keepdims=True)
+        )
+        f_plain, jac_plain = plain.rhs_jac_stages(ts, ys)
+        np.testing.assert_array_equal(jac_plain, jac_cs)
+        np.testing.assert_array_equal(f_plain, f_cs)
 
 
 def _damping_and_stiffness(
