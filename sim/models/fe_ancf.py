@@ -121,7 +121,12 @@ def _bincount(idx: NDArray[np.intp], weights: FloatArray, minlength: int) -> Flo
 
 
 def _damped_force_fast(
-    gh: FloatArray, dgh: FloatArray, ea: FloatArray, ei: FloatArray, a1: float
+    gh: FloatArray,
+    dgh: FloatArray,
+    ea: FloatArray,
+    ei: FloatArray,
+    a1: float,
+    out: FloatArray | None = None,
 ) -> FloatArray:
     """Energy gradient plus ``a1`` times its rate along ``dgh``: (4, P, ...) each ->
     (4 P, ...). Pointwise and analytic, so it also takes complex arguments (complex-step
@@ -161,6 +166,9 @@ def _damped_force_fast(
             -(b1a * g2 + b1b * d2),
             b1a * g1 + b1b * d1,
         ]
+    if out is not None:  # (4, M) rows (the same numbers, written in place)
+        out[0], out[1], out[2], out[3] = parts
+        return out
     return np.concatenate(parts).reshape(4 * n.shape[0], *n.shape[1:])
 
 
@@ -189,6 +197,99 @@ def _material_damped_force(
     kap_rate = sum(a * b for a, b in zip(dk, dgh, strict=True))
     damp = np.stack([a1 * (ea * eps_rate * de[k] + ei * kap_rate * dk[k]) for k in range(4)])
     return elastic + damp.reshape(elastic.shape)
+
+
+# The paper law's pointwise force and its exact derivatives (:func:`_paper_force_jacobian`).
+# With n = |g|^2, c = g x h and the energy density W(n, c) = EA/2 (n^1/2 - 1)^2 + EI/2 c^2 / n^3,
+# every derivative is a combination of four vectors of (g, h) and of the rates u = (g', h'):
+# grad n = (2 g, 0), grad c = (perp'(h), perp(g)), and their rates' counterparts
+# (Hess n) u = (2 g', 0), (Hess c) u = (perp'(h'), perp(g')); _VMAP makes all four, (4 x 4)
+# per point, from [g, h, g', h'] in one product.
+_VMAP = np.zeros((4, 4, 8))
+_VMAP[0, 0, 0] = _VMAP[0, 1, 1] = 2.0
+_VMAP[1, 0, 3], _VMAP[1, 1, 2], _VMAP[1, 2, 1], _VMAP[1, 3, 0] = 1.0, -1.0, -1.0, 1.0
+_VMAP[2, 0, 4] = _VMAP[2, 1, 5] = 2.0
+_VMAP[3, 0, 7], _VMAP[3, 1, 6], _VMAP[3, 2, 5], _VMAP[3, 3, 4] = 1.0, -1.0, -1.0, 1.0
+_VMAP_T = np.ascontiguousarray(_VMAP.reshape(16, 8).T)  # (8, 16)
+# the Jacobians' coefficient matrices G (J = V^T G V), laid out (vector k, by the
+# coordinates or the rates, vector l), as linear maps of [W_nn, W_nc, W_cc, t1, t2, t3] (the
+# t_i are the a1 terms): _GMAP the entries of weight 1, _GMAP_A1 those of weight a1
+_GMAP = np.zeros((6, 4, 2, 4))
+_GMAP_A1 = np.zeros((6, 4, 2, 4))
+for (_i, _j), (_w, _t) in {(0, 0): (0, 3), (0, 1): (1, 4), (1, 0): (1, 4), (1, 1): (2, 5)}.items():
+    _GMAP[_w, _i, 0, _j] = _GMAP[_t, _i, 0, _j] = 1.0
+    _GMAP_A1[_w, _i, 1, _j] = 1.0  # by the rates: a1 Hess W
+for _w, (_i, _j) in ((0, (0, 2)), (1, (0, 3)), (1, (1, 2)), (2, (1, 3))):
+    _GMAP_A1[_w, _i, 0, _j] = _GMAP_A1[_w, _j, 0, _i] = 1.0
+# the constant Hessians of n (2 diag(1, 1, 0, 0)) and c, weighted by [alpha, beta] (by the
+# coordinates) and [a1 W_n, a1 W_c] (by the rates); laid out (out, coordinates / rates, in)
+_CMAP4 = np.zeros((4, 4, 2, 4))
+for _b, _w in ((0, 0), (1, 2)):
+    _CMAP4[_w, 0, _b, 0] = _CMAP4[_w, 1, _b, 1] = 2.0
+    _CMAP4[_w + 1, 0, _b, 3] = _CMAP4[_w + 1, 3, _b, 0] = 1.0
+    _CMAP4[_w + 1, 1, _b, 2] = _CMAP4[_w + 1, 2, _b, 1] = -1.0
+_CMAP = _CMAP4.reshape(4, 32)
+
+
+def paper_gmap(a1: float) -> FloatArray:
+    """:func:`_paper_force_jacobian`'s coefficient map for the damping ``a1``, (6, 32)."""
+    return np.asarray((_GMAP + a1 * _GMAP_A1).reshape(6, 32), dtype=np.float64)
+
+
+def _paper_force_jacobian(
+    x8: FloatArray, ea: FloatArray, ei: FloatArray, a1: float, gmap: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The paper law's pointwise force ``grad W + a1 (Hess W) u`` and its exact Jacobian,
+    in closed form: ``x8`` (8, M) rows ``[g, h, u]`` (``u`` the rates of ``g, h``), ``ea``
+    (2, M) rows ``EA / 2``, ``EA / 4`` (exact scalings), ``ei`` (M,) and
+    :func:`paper_gmap` ``(a1)`` -> force (M, 4) and Jacobians (M, 4 out, 8 in), by
+    ``(g, h)`` then by ``u``.
+
+    With ``V`` the four vectors of ``_VMAP``, ``N = grad n . u``, ``C = grad c . u``:
+    ``f = V^T [alpha, beta, a1 W_n, a1 W_c]`` (``alpha = W_n + a1 (W_nn N + W_nc C)``,
+    ``beta = W_c + a1 (W_nc N + W_cc C)``); ``df/d(g, h) = V^T G V + alpha Hess n + beta
+    Hess c`` with the symmetric ``G = [[W_nn + t1, W_nc + t2, a1 W_nn, a1 W_nc], [W_nc + t2,
+    W_cc + t3, a1 W_nc, a1 W_cc], [a1 W_nn, a1 W_nc, 0, 0], [a1 W_nc, a1 W_cc, 0, 0]]``
+    (``t1 = a1 (W_nnn N + W_nnc C)``, ``t2 = a1 (W_nnc N + W_ncc C)``, ``t3 = a1 W_ncc N``:
+    the third derivatives along ``u``); ``df/du = a1 Hess W``. The arrays are small, so the
+    cost is the number of numpy calls: about forty here, against eight complex force
+    evaluations for complex-step derivatives."""
+    g1, g2, h1, h2, d1, d2, e1, e2 = x8
+    m = g1.size
+    # coef (6, M): W_nn, W_nc, W_cc, t1, t2, t3; weights (4, M): alpha, beta, a1 W_n, a1 W_c;
+    # each row is its last operation's output (no packing afterwards)
+    buf = np.empty((10, m))
+    coef, weights = buf[:6], buf[6:]
+    inv_n = 1.0 / (g1 * g1 + g2 * g2)
+    isq = np.sqrt(inv_n)
+    c = g1 * h2 - g2 * h1
+    e3 = np.multiply(ei, inv_n * inv_n * inv_n, out=coef[2])  # EI n^-3 = W_cc
+    ci = c * inv_n
+    e3ci = e3 * ci  # EI c n^-4
+    ea4 = ea[1] * (isq * inv_n)  # EA n^-3/2 / 4
+    w_n = ea[0] * (1.0 - isq) - (e3ci * c) * 1.5  # not ea - ea isq: |g| - 1 ~ 1e-6
+    w_c = e3 * c
+    w_nn = np.add(ea4, (e3ci * ci) * 6.0, out=coef[0])
+    w_nc = np.multiply(e3ci, -3.0, out=coef[1])
+    w_ncc = (e3 * inv_n) * -3.0
+    w_nnc = (w_nc * inv_n) * -4.0
+    w_nnn = (ea4 * inv_n) * -1.5 - (e3ci * ci * inv_n) * 30.0
+    a1n = (g1 * d1 + g2 * d2) * (2.0 * a1)  # a1 N
+    a1c = ((d1 * h2 - d2 * h1) + (g1 * e2 - g2 * e1)) * a1  # a1 C
+    np.add(w_nnn * a1n, w_nnc * a1c, out=coef[3])
+    np.add(w_nnc * a1n, w_ncc * a1c, out=coef[4])
+    np.multiply(w_ncc, a1n, out=coef[5])
+    np.add(w_n, w_nn * a1n + w_nc * a1c, out=weights[0])
+    np.add(w_c, w_nc * a1n + e3 * a1c, out=weights[1])
+    np.multiply(w_n, a1, out=weights[2])
+    np.multiply(w_c, a1, out=weights[3])
+    v = (x8.T @ _VMAP_T).reshape(m, 4, 4)  # (M, vector, component)
+    vt = v.transpose(0, 2, 1)
+    force = (vt @ weights.T[:, :, None])[..., 0]  # (M, 4)
+    gv = (coef.T @ gmap).reshape(m, 8, 4) @ v  # (M, (vector, coordinates / rates), in)
+    jac = vt @ gv.reshape(m, 4, 8)
+    jac += (weights.T @ _CMAP).reshape(m, 4, 8)
+    return force, jac
 
 
 @dataclass
@@ -369,6 +470,13 @@ class AncfSystem:
     ANCF cable. The two differ by the geometric part ``a1 (N d2eps + M d2kappa) v``: a force
     from the current axial force and bending moment times the rotation rate of the centre
     line relative to the hub, which is not a strain rate. ``a0 M v`` is the same in both.
+
+    ``fused`` (default): with the paper law and ``a1 > 0``, :meth:`rhs_stages` and
+    :meth:`rhs_jac_stages` take the fused path (closed-form pointwise Jacobians, one
+    product for the accelerations); ``False`` keeps the complex-step path. Both agree to
+    rounding, but an adaptive step control turns rounding into changes of the size of its
+    tolerance (a step more or less), so :func:`sim.models.fe.simulate_fe` fuses only at a
+    fixed step, and its adaptive runs stay bit for bit what they were.
     """
 
     def __init__(
@@ -379,6 +487,7 @@ class AncfSystem:
         a0: float,
         a1: float,
         damping_law: str = "paper",
+        fused: bool = True,
     ) -> None:
         self.damping_law = check_choice("damping_law", damping_law, DAMPING_LAWS)
         self.fe = AncfBeam(beam, n_elements)
@@ -448,6 +557,27 @@ class AncfSystem:
         if npert == 8:
             self._perturbation[1, :, 4:] = 1j * _CS_STEP * np.eye(4)
         self._stiffness: dict[tuple[int, ...], tuple[FloatArray, FloatArray]] = {}
+        self._gmap = paper_gmap(a1)
+        # the damped paper law (the reciprocating scene's) evaluates fused: [g, h, g', h'] at
+        # every point from the states in one product, the accelerations from
+        # [d; v; force; 1] in one product weighted by (1, Omega^2, -alpha, -2 Omega); the
+        # arrays are small, so the number of numpy calls is the cost
+        self._fused = fused and self.damping_law == "paper" and a1 != 0.0
+        npt4 = 4 * npt
+        self._x8_map = np.zeros((2 * npt4, 2 * nf))
+        self._x8_map[:npt4, :nf] = self.bf_flat
+        self._x8_map[npt4:, nf:] = self.bf_flat
+        self._x8_0 = np.concatenate([self.gh0.reshape(-1), np.zeros(npt4)])[:, None]
+        acc_map = np.zeros((4, nf, 2 * nf + npt4 + 1))
+        acc_map[0, :, nf : 2 * nf] = -self.a0 * self.eye
+        acc_map[0, :, 2 * nf : 2 * nf + npt4] = -self.minv_bt
+        acc_map[1, :, :nf], acc_map[1, :, -1] = self.m_ff, self.m_e0
+        acc_map[2, :, :nf], acc_map[2, :, -1] = self.minv_mj_ff, self.mj_e0
+        acc_map[3, :, nf : 2 * nf] = self.minv_mj_ff
+        self._acc_map = acc_map.reshape(4 * nf, -1)
+        self._hub_cache: dict[bytes, FloatArray] = {}
+        self._ea_halves: dict[int, FloatArray] = {}
+        self._jac_template: dict[int, FloatArray] = {}
 
     def full(self, d: FloatArray) -> FloatArray:
         e = self.fe.e_ref.copy()
@@ -530,8 +660,61 @@ class AncfSystem:
         )  # fmt: skip
         return np.concatenate([v, acc]).T
 
+    def _hub_weights(self, ts: FloatArray) -> FloatArray:
+        """(4, k) rows ``1, Omega^2, -alpha, -2 Omega`` at the times ``ts``, kept for the
+        last few time sets (a Newton iteration evaluates its stages' times again; the key
+        is the times' bytes, so a changed array is never mistaken). Read only."""
+        key = ts.tobytes()
+        w = self._hub_cache.get(key)
+        if w is None:
+            om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
+            al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
+            w = np.array([np.ones(ts.size), om * om, -al, -2.0 * om])
+            if len(self._hub_cache) >= 4:
+                self._hub_cache.clear()
+            self._hub_cache[key] = w
+        return w
+
+    def _fused_points(self, ys: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``[g, h, g', h']`` (8, P k) at every point and stage, and the points' EA, EI."""
+        x8 = (self._x8_map @ ys.T + self._x8_0).reshape(8, -1)
+        shape = (self.bf.shape[1], ys.shape[0])
+        if shape not in self._stiffness:
+            self._force(x8[:4].reshape(4, *shape), x8[4:].reshape(4, *shape), 1)  # caches
+        ea, ei = self._stiffness[shape]
+        return x8, ea, ei
+
+    def _fused_ea(self, ea: FloatArray) -> FloatArray:
+        """``[EA / 2, EA / 4]`` (2, M) for :func:`_paper_force_jacobian`, kept per size."""
+        halves = self._ea_halves.get(ea.size)
+        if halves is None:
+            halves = self._ea_halves[ea.size] = np.array([0.5 * ea, 0.25 * ea])
+        return halves
+
+    def _fused_operand(self, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``[d; v; force; 1]`` (2 nf + 4 P + 1, k) with the force rows to be filled, and
+        those rows as (4, P k), component by component."""
+        k, n = ys.shape
+        npt4 = 4 * self.bf.shape[1]
+        x = np.empty((n + npt4 + 1, k))
+        x[:n] = ys.T
+        x[-1] = 1.0
+        return x, x[n : n + npt4].reshape(4, -1)
+
+    def _fused_rhs(self, w: FloatArray, ys: FloatArray, x: FloatArray) -> FloatArray:
+        """(k, n_state) right-hand sides from :meth:`_fused_operand`'s ``x`` filled."""
+        k, nf = ys.shape[0], self.nf
+        acc = ((self._acc_map @ x).reshape(4, nf, k) * w[:, None, :]).sum(axis=0)
+        return np.concatenate([ys[:, nf:], acc.T], axis=1)
+
     def rhs_stages(self, ts: FloatArray, ys: FloatArray) -> FloatArray:
         """The right-hand side at several points at once: (k,), (k, n_state) -> (k, n_state)."""
+        if self._fused:
+            w = self._hub_weights(ts)
+            x8, ea, ei = self._fused_points(ys)
+            x, force = self._fused_operand(ys)
+            _damped_force_fast(x8[:4], x8[4:], ea, ei, self.a1, out=force)
+            return self._fused_rhs(w, ys, x)
         om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
         return self._rhs_from_force(om, al, d, v, self._force(gh, dgh, 1))
 
@@ -555,7 +738,38 @@ class AncfSystem:
 
     def rhs_jac_stages(self, ts: FloatArray, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
         """:meth:`rhs_stages` and :meth:`jac_stages` at the same points in one evaluation
-        of the force: (k,), (k, n) -> (k, n), (k, n, n)."""
+        of the force: (k,), (k, n) -> (k, n), (k, n, n). The paper's law takes its
+        pointwise derivatives in closed form (:func:`_paper_force_jacobian`), the material
+        law and the undamped beam by complex step (:meth:`_force_derivatives`: four complex
+        evaluations without damping cost less than the closed form); both are exact to
+        rounding."""
+        if not self._fused:
+            return self._rhs_jac_stages_complex_step(ts, ys)
+        nf = self.nf
+        npts = ts.size
+        w = self._hub_weights(ts)
+        x8, ea, ei = self._fused_points(ys)
+        force, local = _paper_force_jacobian(x8, self._fused_ea(ea), ei, self.a1, self._gmap)
+        npt = self.bf.shape[1]
+        # M^-1 sum_p B_p^T J_p B_p for every stage: J_p B_p per point, then one product
+        # with M^-1 B^T over (point, component): kk (k, nf, 2 nf) is [M^-1 dF/dd, M^-1 dF/dv]
+        jb = (local.reshape(npt, -1, 4) @ self.b_pts).reshape(npt, npts, 8 * nf)
+        kk = self.minv_bt_pts @ jb.transpose(1, 0, 2).reshape(npts, npt * 4, 2 * nf)
+        template = self._jac_template.get(npts)
+        if template is None:
+            template = np.zeros((npts, 2 * nf, 2 * nf))
+            template[:, :nf, nf:] = self.eye
+            self._jac_template[npts] = template
+        jac = template.copy()
+        jac[:, nf:, :] = (w.T @ self._jac_frame).reshape(npts, nf, 2 * nf) - kk
+        x, force_rows = self._fused_operand(ys)
+        np.copyto(force_rows, force.T)
+        return self._fused_rhs(w, ys, x), jac
+
+    def _rhs_jac_stages_complex_step(
+        self, ts: FloatArray, ys: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`rhs_jac_stages` with complex-step pointwise derivatives (any law)."""
         nf = self.nf
         npts = ts.size
         om, al, d, v, gh, dgh = self._stage_terms(ts, ys)
@@ -583,8 +797,10 @@ class AncfSystem:
         return self.rhs_jac_stages(ts, ys)[1]
 
     def jac(self, t: float, y: FloatArray) -> FloatArray:
-        """Exact Jacobian of :meth:`rhs` (n_state, n_state)."""
-        return self.jac_stages(np.array([t]), y[None, :])[0]
+        """Exact Jacobian of :meth:`rhs` (n_state, n_state), by complex step: scipy's
+        integrators (BDF, Radau: the references) call it a point at a time, where the
+        closed form saves nothing, and their runs stay bit for bit what they were."""
+        return self._rhs_jac_stages_complex_step(np.array([t]), y[None, :])[1][0]
 
     def initial_state(self) -> FloatArray:
         return np.zeros(self.n_state)

@@ -15,10 +15,12 @@ stiff, *nonlinear* beams with Kelvin-Voigt damping:
   the solution's, so one evaluation per step is enough (1.0 per attempt, 2.1 iterations,
   measured on the paper's scene at rtol = atol = 1e-4); when the iteration contracts slower
   than :data:`JAC_REFRESH_RATE` they are re-evaluated at the current iterate (full Newton);
-- the function and its Jacobians come from one call (``rhs_jac_stages``: the complex-step
-  derivatives carry the function in their real part), the three stages in one vectorised
-  evaluation, and the right-hand side at the step's end is the last stage's, linearised to
-  the final iterate (the stage at c = 1 is the new point);
+- the function and its Jacobians come from one call (``rhs_jac_stages``: complex-step
+  derivatives carry the function in their real part; the FE beam's paper law at a fixed
+  step has them in closed form), all stages in one vectorised evaluation, and the
+  right-hand side at the step's end is the last stage's, linearised to the final iterate
+  (the stage at c = 1 is the new point; a fixed step skips the linearisation, it only
+  checks that F is finite);
 - LU factors straight from LAPACK, norms and finiteness checks with the fewest numpy calls:
   the systems are small (48 unknowns for two elements), so call overhead is the cost.
 
@@ -31,6 +33,7 @@ answer.
 
 from __future__ import annotations
 
+import bisect
 import functools
 import math
 import time
@@ -234,6 +237,7 @@ def radau5(
             raise SimInputError("first_step_s", "must be None with a fixed_step_s")
         first_step_s = fixed_step_s
     t_out = np.asarray(t_eval_s, dtype=float)
+    t_list = t_out.tolist()  # the same floats, for bisect (cheaper per call)
     y = np.array(y0, dtype=float)
     n = y.size
     out = np.empty((t_out.size, n))
@@ -288,8 +292,7 @@ def radau5(
                 z = np.zeros((tab.s, n))
             else:
                 # extrapolate the last collocation polynomial to the new stages
-                x = (h / h_prev) * tab.c + 1.0
-                z = (q_prev @ (x**tab.powers)).T + (y_prev - y)
+                z = (q_prev @ tab.extrapolation_powers(h / h_prev)).T + (y_prev - y)
             scale = atol + np.abs(y) * rtol
             if not full:
                 converged, n_iter, z, _rate = _newton(
@@ -349,7 +352,7 @@ def radau5(
         if rejected:
             factor = min(1.0, factor)  # no growth right after a rejection (Hairer's RADAU5)
         q = z.T @ tab.p  # (n, s): y(t + x h) = y + q [x, x^2, .., x^s]
-        k_end = int(np.searchsorted(t_out, t_new + 1e-12 * h, side="right"))
+        k_end = bisect.bisect_right(t_list, t_new + 1e-12 * h)  # np.searchsorted's
         if k_end > k_out:  # every output time in the step at once
             x = (t_out[k_out:k_end] - t) / h
             out[k_out:k_end] = y + (q @ (x[None, :] ** tab.powers)).T
@@ -552,6 +555,33 @@ class _Tableau:
         self.a_diag = np.einsum("ik,jk->ikj", self.a, np.eye(stages)).reshape(
             stages * stages, stages
         )
+        self._at_step: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self._powers: dict[float, FloatArray] = {}
+
+    def at_step(self, h: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(h c, h A, -coef)`` for a step ``h``: the stage offsets, ``h A`` and the
+        reduced Newton matrix's coefficient map negated (:func:`_newton_second_order`),
+        kept for the last few step sizes (a fixed step uses one or two)."""
+        made = self._at_step.get(h)
+        if made is None:
+            coef = np.concatenate([(h * h) * self.aa_flat, h * self.a_diag], axis=1)
+            made = (h * self.c, h * self.a, -coef)
+            if len(self._at_step) >= 4:
+                self._at_step.clear()
+            self._at_step[h] = made
+        return made
+
+    def extrapolation_powers(self, ratio: float) -> FloatArray:
+        """``x^[1..s]`` at the nodes of the next step, ``x = ratio c + 1`` (``ratio`` the
+        new step over the last): where the last step's collocation polynomial is evaluated
+        to predict the new stages (cached as :meth:`at_step`)."""
+        made = self._powers.get(ratio)
+        if made is None:
+            made = (ratio * self.c + 1.0) ** self.powers
+            if len(self._powers) >= 4:
+                self._powers.clear()
+            self._powers[ratio] = made
+        return made
 
     @classmethod
     def of(cls, stages: int) -> _Tableau:
@@ -589,9 +619,9 @@ def _newton_second_order(
     m = n // 2
     tab = _Tableau.of(3) if tab is None else tab
     ns = tab.s
-    ts = t + h * tab.c
-    ha = h * tab.a
-    z = z0.copy()
+    hc, ha, neg_coef = tab.at_step(h)
+    ts = t + hc
+    z = z0.copy()  # C order (the prediction is a transpose; the layout steers BLAS's rounding)
     z[:, :m] = ha @ (y[m:] + z[:, m:])  # P on its line
     dz = np.empty_like(z)
     inv_scale = 1.0 / scale
@@ -599,9 +629,8 @@ def _newton_second_order(
     lu: tuple[FloatArray, NDArray[np.int32]] | None = None
     jac_k = 0
     js = np.empty((ns, n, n))
-    # the matrix's coefficients of [Kd of the s stages, Kv of the s stages] per block (i, k):
-    # h^2 A_ij A_jk for Kd_j, h A_ik for Kv_k
-    coef = np.concatenate([(h * h) * tab.aa_flat, h * tab.a_diag], axis=1)  # (s^2, 2 s)
+    # neg_coef: minus the matrix's coefficients of [Kd of the s stages, Kv of the s stages]
+    # per block (i, k): h^2 A_ij A_jk for Kd_j, h A_ik for Kv_k; (s^2, 2 s)
     k = 0
     for k in range(NEWTON_MAXITER_FIXED if persist else NEWTON_MAXITER):
         ys = y + z
@@ -611,17 +640,17 @@ def _newton_second_order(
             f, js = rhs_jac_stages(ts, ys)
             stats.n_jac += ns
             stats.n_lu += 1
-            if not (_finite(f) and _finite(js)):
+            if not _finite(f):
                 return False, k + 1, z, js, f, faccon
             jac_k = k
             # [Kd of each stage; Kv of each stage] (2 s, m m): the stage Jacobians'
-            # acceleration rows
+            # acceleration rows (a non-finite one makes the factors and so dz non-finite,
+            # which fails the iteration below)
             kdv = js[:, m:, :].reshape(ns, m, 2, m).transpose(2, 0, 1, 3).reshape(2 * ns, m * m)
             blocks = (
-                (coef @ kdv).reshape(ns, ns, m, m).transpose(0, 2, 1, 3).reshape(ns * m, ns * m)
+                (neg_coef @ kdv).reshape(ns, ns, m, m).transpose(0, 2, 1, 3).reshape(ns * m, ns * m)
             )
-            blocks *= -1.0
-            blocks.flat[:: ns * m + 1] += 1.0
+            blocks += eye  # adding zeros elsewhere changes nothing
             lu = _lu(blocks)
             dz_norm_old = None
         else:
@@ -650,6 +679,8 @@ def _newton_second_order(
         # Hairer's test: the remaining error of a contraction at rate theta is about
         # theta / (1 - theta) |dz|; on the first iteration theta is the last one measured
         if faccon * dz_norm < tol:
+            if persist:  # a fixed step needs F at the stages only to check it is finite
+                return True, k + 1, z, js, f, faccon
             return True, k + 1, z, js, f + (js @ dz[:, :, None])[..., 0], faccon
         dz_norm_old = dz_norm
     return False, k + 1, z, js, f, faccon

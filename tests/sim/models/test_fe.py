@@ -468,7 +468,8 @@ def test_axial_force_is_smooth_to_rounding_for_tight_references() -> None:
 def test_stage_jacobians_match_central_differences(
     rig_beam: BeamProperties, n_elements: int, a1_s: float, damping_law: str
 ) -> None:
-    # the exact Jacobian (complex-step pointwise derivatives, element-wise assembly) of the
+    # the exact Jacobian (pointwise derivatives in closed form for the paper law, by complex
+    # step for the material law; element-wise assembly) of the
     # damped rotating-frame equations at a bent, stretched, moving state, against central
     # differences: their error is truncation (~1e-7 of a column's largest entry; columns
     # span 4 to 1e11) plus rounding of the right-hand side, eps |f| / step (|f| is large:
@@ -497,6 +498,47 @@ def test_stage_jacobians_match_central_differences(
             fd[:, j] = (fp - fm) / (2 * step)
             bound[:, j] = 1e-7 * np.abs(fd[:, j]).max() + eps * np.abs(fp).max() / step
         assert np.all(np.abs(jac[k] - fd) < 10 * bound)
+
+
+@pytest.mark.parametrize("n_elements", [1, 2, 5])
+def test_closed_form_stage_jacobians_match_complex_step(
+    rig_beam: BeamProperties, n_elements: int
+) -> None:
+    # the paper law's closed-form pointwise derivatives (third derivatives of the energy
+    # along the rates included) against the complex-step ones, on random states from
+    # nearly straight to strongly bent, stretched or compressed (|r'| from 0.4 to 3) and fast.
+    # The complex step (1e-30) has a truncation error of order step^2 relative, so both are
+    # exact up to rounding: each entry is a sum of a few dozen products of up to five
+    # factors, so they may differ by some tens of eps of the column's largest entry
+    # (columns span many decades: EA against EI terms); 64 eps is allowed, a wrong term
+    # (a factor or a sign) would be off by its own size
+    drive = SinusoidDrive(0.5, 3.0, 0.2)  # not the paper's drive
+    system = AncfSystem(rig_beam, n_elements, drive, 0.3, 0.07)
+    plain = AncfSystem(rig_beam, n_elements, drive, 0.3, 0.07, fused=False)
+    rng = np.random.default_rng(11)
+    eps = np.finfo(float).eps
+    for scale_d, scale_v in ((1e-4, 1e-3), (3e-2, 1.0), (0.1, 30.0)):
+        ys = np.concatenate(
+            [scale_d * rng.normal(size=(4, system.nf)), scale_v * rng.normal(size=(4, system.nf))],
+            axis=1,
+        )
+        ts = rng.uniform(0.0, 2.0, size=4)
+        f, jac = system.rhs_jac_stages(ts, ys)
+        f_cs, jac_cs = system._rhs_jac_stages_complex_step(ts, ys)
+        assert np.all(np.abs(f - f_cs) <= 64 * eps * np.abs(f_cs).max(axis=1, keepdims=True))
+        column = np.abs(jac_cs).max(axis=1, keepdims=True)
+        assert np.all(np.abs(jac - jac_cs) <= 64 * eps * column)
+        # and the complex-step ones are what the closed form replaced, not the same code
+        assert np.any(jac != jac_cs)
+        # the fused right-hand side (one product for the accelerations) against the plain
+        # one, the same rounding argument; the plain system is the complex-step path
+        rhs, rhs_plain = system.rhs_stages(ts, ys), plain.rhs_stages(ts, ys)
+        assert np.all(
+            np.abs(rhs - rhs_plain) <= 64 * eps * np.abs(rhs_plain).max(axis=1, keepdims=True)
+        )
+        f_plain, jac_plain = plain.rhs_jac_stages(ts, ys)
+        np.testing.assert_array_equal(jac_plain, jac_cs)
+        np.testing.assert_array_equal(f_plain, f_cs)
 
 
 def _damping_and_stiffness(
