@@ -255,12 +255,10 @@ def _scan(
         # light is smooth; one line's tilt is mostly noise). The strip's own inner
         # part is a short base (5-10 samples): its tilt, tried, was noisier, and moved
         # the other renderer's even-light frames more.
-        tilt = _pooled_tilt(near, far, level_out, bounds)
-        tilt *= np.repeat([2 * g.reach + 1 - margin_px for g in geos], sizes) ** -1.0
-        tilt *= half
-        lo_a, hi_a = lo * (1.0 - tilt), hi * (1.0 - tilt)
-        lo_b, hi_b = lo * (1.0 + tilt), hi * (1.0 + tilt)
-        lo2, hi2 = np.concatenate([lo_a, -hi_b]), np.concatenate([hi_a, -lo_b])
+        spans = [2 * g.reach + 1 - margin_px for g in geos]  # between the ends' centres
+        tilt = _pooled_tilt(near, far, level_out, bounds, spans) * half
+        fa, fb = 1.0 - tilt, 1.0 + tilt  # the light at the edges, relative to the middle
+        lo2, hi2 = np.concatenate([lo * fa, -(hi * fb)]), np.concatenate([hi * fa, -(lo * fb)])
     cen, step, area = _window_edges(prof2, peak, win, lo2, hi2)
     if lo2 is not None and hi2 is not None:
         cen = np.where(np.isfinite(area), area, cen)
@@ -351,29 +349,35 @@ def _pooled_tilt(
     far: NDArray[np.int16],
     level: NDArray[np.float64],
     bounds: NDArray[np.intp],
+    spans: list[int],
 ) -> NDArray[np.float64]:
-    """Per line, its strip's relative change of the background level between the lines'
-    first samples ``near`` and last samples ``far`` (the ends' means' difference over
-    the level), 0 for a strip of fewer than 8 lines.
+    """Per line, its strip's relative change of the background level per sample along
+    the lines: the difference of the means of the lines' first samples ``near`` and
+    last samples ``far`` over the level and the ``spans`` (samples, one per strip)
+    between them; 0 for a strip of fewer than 8 lines.
 
     The strip's lines' values are pooled by the mean of their middle half (lines whose
     ends cross clutter are outliers), shrunk toward 0 by ``max(0, 1 - (se / t)^2)``
     (``se``: that mean's standard error, Tukey and McLaughlin's, from the winsorized
     variance). Without it, the tilt's noise in even light (a short wide hub: few lines
-    of many samples each) moved the hub angle by 0.14 of its sd RMS; shrunk, a third of
-    that noise's variance is left, while a tilt of 4 standard errors keeps 94 % of its
-    correction."""
-    rel = (far.mean(axis=0) - near.mean(axis=0)) / np.maximum(level, 1.0)
+    of many samples each) moved the hub angle by 0.14 of its sd RMS; shrunk, about a
+    third of that noise's variance is left, while a tilt of 4 standard errors keeps
+    94 % of its correction."""
+    diff = far.sum(axis=0, dtype=np.int32) - near.sum(axis=0, dtype=np.int32)
+    rel = diff / (near.shape[0] * np.maximum(level, 1.0))
     out = np.zeros(len(rel))
-    for a, b in itertools.pairwise(bounds):
-        k = b - a
-        if k >= 8:
-            lo, hi = k // 4, (3 * k) // 4
-            q = np.partition(rel[a:b], [lo, hi])
-            t = float(q[lo : hi + 1].mean())
-            w = _clip(q, q[lo], q[hi])
-            se = float(np.std(w)) / ((hi + 1 - lo) / k * math.sqrt(k))
-            out[a:b] = t * max(0.0, 1.0 - (se / t) ** 2) if t != 0.0 else 0.0
+    for (a, b), span in zip(itertools.pairwise(bounds), spans, strict=True):
+        k = int(b - a)
+        if k < 8:
+            continue
+        lo, hi = k // 4, (3 * k) // 4
+        q = np.partition(rel[a:b], (lo, hi))
+        t = float(q[lo : hi + 1].sum()) / (hi + 1 - lo)
+        w = np.minimum(np.maximum(q, q[lo]), q[hi])  # winsorized
+        w -= float(w.sum()) / k
+        se = math.sqrt(float(w @ w) / k) / ((hi + 1 - lo) / k * math.sqrt(k))
+        if t != 0.0:
+            out[a:b] = t * max(0.0, 1.0 - (se / t) ** 2) / span
     return out
 
 
