@@ -110,3 +110,58 @@ def test_bilinear_interpolates_and_is_nan_off_the_image() -> None:
     # value = 10 * (5 y + x) for this ramp
     np.testing.assert_allclose(v[:3], [10 * (5 * 2.5 + 1.25), 0.0, 190.0])
     assert np.all(np.isnan(v[3:]))
+
+
+@pytest.mark.parametrize("transpose", [False, True])
+def test_both_edges_of_a_strip_under_uneven_light_are_where_the_strip_is(
+    transpose: bool,
+) -> None:
+    """Light that changes across the scan lines tilts both plateaus. Levels taken at the
+    strip's middle put both its edges off the same way, toward the light (the strip's
+    centre line off by about rho half mid / slope: 0.06 px here, with the light 60 %
+    brighter from one side of the image to the other), which turns the hub's axis
+    against the beam's. The image is the closed form of a Gaussian blur of a lit box
+    strip: for light L linear across, G * (L R) = L (G * R) + sigma^2 L' d(G * R)/dy
+    exactly, sampled at pixel centres, with 2 DN of noise (seeded)."""
+    h, w = 200, 500
+    y0, slope, half, sigma, lo, hi = 97.3, 0.08, 10.2, 0.85, 45.0, 215.0
+    rho = 3e-3  # the light's relative change per pixel down the image
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    light = 1.0 + rho * (y - y0)
+    root = np.hypot(1.0, slope)
+    d = (y - y0 - slope * x) / root
+    box = ndtr((d + half) / sigma) - ndtr((d - half) / sigma)
+    dbox_dy = np.exp(-0.5 * ((d + half) / sigma) ** 2) - np.exp(-0.5 * ((d - half) / sigma) ** 2)
+    dbox_dy /= sigma * np.sqrt(2 * np.pi) * root
+    v = light * (lo + (hi - lo) * box) + sigma**2 * rho * (hi - lo) * dbox_dy
+    v += np.random.default_rng(7).normal(0.0, 2.0, v.shape)
+    img = np.round(v).clip(0, 255).astype(np.uint8)
+    xs = np.linspace(20.0, w - 20.0, 40)
+    line = np.column_stack([xs, y0 + slope * xs])
+    if transpose:  # the same strip along rows, the light across them
+        img, line = np.ascontiguousarray(img.T), line[:, ::-1]
+    edges = strip_edges(img, line, half, estimator="erf")
+    a, b = edges.side_a, edges.side_b
+    if transpose:
+        a, b = a[:, ::-1], b[:, ::-1]
+    assert len(a) > 400
+    across = half * root
+    err_a = a[:, 1] - (y0 + slope * a[:, 0] - across)
+    err_b = b[:, 1] - (y0 + slope * b[:, 0] + across)
+    centre = 0.5 * (err_a + err_b)
+
+    # The noise of the mean at 4 sd (from the means of blocks of 20 lines: the levels
+    # are smoothed over 9 lines, so neighbouring lines' errors are not independent),
+    # plus the estimator's own second-order error, 2 rho sigma^2 (the erf model's
+    # levels are flat within its window: the light's tilt there, times the step, and
+    # the blur's sigma^2 L' term are both even bumps at the edge, each moving it
+    # rho sigma^2 toward the dark side).
+    def sem(x: np.ndarray) -> float:
+        blocks = x[: len(x) // 20 * 20].reshape(-1, 20).mean(axis=1)
+        return float(blocks.std() / np.sqrt(len(blocks)))
+
+    tol = 4.0 * sem(centre) + 2.0 * rho * sigma**2
+    assert abs(centre.mean()) < tol, (centre.mean(), tol)
+    # The width is untouched by the tilt (the two edges' shifts cancel in it).
+    width = err_b - err_a
+    assert abs(width.mean()) < 4.0 * sem(width)
