@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
 import numpy as np
@@ -264,18 +264,24 @@ class CentreFit:
     #: the fraction of the beam's edge points the biweight rejected (NaN where not
     #: computed).
     outlier_fraction: float = math.nan
-    #: the covariance of the centre line's lateral (m) and slope at ``a_max``, row-major
-    #: (var b, cov(b, b'), var b'), for a tip found beyond the last edge point along the
-    #: tangent (NaN where not computed).
-    end_cov: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    #: the covariance of the centre line's lateral (m) with its slope at ``a_max``, and
+    #: the slope's variance, computed on demand (only the final fit's is asked for), for
+    #: a tip found beyond the last edge point along the tangent (None: not computed).
+    end_cov: Callable[[], tuple[float, float]] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    def extrapolation_var(self, ext: float) -> float:
+        """What the slope adds to the lateral's variance at ``a_max + ext`` along the end's
+        tangent (m^2; 0 where ``end_cov`` is not computed)."""
+        if self.end_cov is None:
+            return 0.0
+        cov_bs, var_s = self.end_cov()
+        return 2.0 * ext * cov_bs + ext * ext * var_s
 
     def tip_sd_beyond(self, ext: float) -> float:
-        """Standard uncertainty of the lateral at ``a_max + ext`` along the end's tangent:
-        ``tip_sd`` where ``end_cov`` is not computed."""
-        _, cbs, vs = self.end_cov
-        if not math.isfinite(vs):
-            return self.tip_sd
-        return math.sqrt(max(self.tip_sd**2 + 2.0 * ext * cbs + ext * ext * vs, 0.0))
+        """Standard uncertainty of the lateral at ``a_max + ext`` along the end's tangent."""
+        return math.sqrt(max(self.tip_sd**2 + self.extrapolation_var(ext), 0.0))
 
 
 @lru_cache(maxsize=8)
@@ -759,16 +765,19 @@ def _fit_joint(
     else:
         g_tip[n_coef - p_shape :] = modal.basis_t(np.array([amax]))[:, 0]
     tip_sd = math.sqrt(max(float(g_tip @ cov @ g_tip), 0.0))
-    # The slope at a_max, by a difference of the shape functions (a step of 1e-6 of the
-    # beam: the difference's own error ~1e-10 of the slope).
-    h = 1e-6 * amax
-    g_in = np.zeros(n_coef)
-    if modal is None:
-        g_in[n_coef - p_shape :] = _basis(np.array([1.0 - h / amax]), degree)[0]
-    else:
-        g_in[n_coef - p_shape :] = modal.basis_t(np.array([amax - h]))[:, 0]
-    g_slope = (g_tip - g_in) / h
-    end_cov = (tip_sd**2, float(g_tip @ cov @ g_slope), float(g_slope @ cov @ g_slope))
+
+    def end_cov() -> tuple[float, float]:
+        # The slope at a_max, by a difference of the shape functions (a step of 1e-6 of
+        # the beam: the difference's own error ~1e-10 of the slope).
+        h = 1e-6 * amax
+        g_in = np.zeros(n_coef)
+        if modal is None:
+            g_in[n_coef - p_shape :] = _basis(np.array([1.0 - h / amax]), degree)[0]
+        else:
+            g_in[n_coef - p_shape :] = modal.basis_t(np.array([amax - h]))[:, 0]
+        g_slope = (g_tip - g_in) / h
+        return float(g_tip @ cov @ g_slope), float(g_slope @ cov @ g_slope)
+
     # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
     # free offset and a free slope at the root.
     kb = keep[:n_beam]

@@ -360,9 +360,7 @@ class Measurer:
         a_tip, b_tip = self._tip(image, clamp, e, n, centre, amax, w_beam)
         # The tip lies beyond the last edge point, along the centre line's tangent there:
         # its lateral carries the slope's uncertainty over that distance too.
-        sd_tip = math.sqrt(
-            max(sd_tip**2 + fit.tip_sd_beyond(a_tip - amax) ** 2 - fit.tip_sd**2, sd_tip**2)
-        )
+        sd_tip = math.sqrt(sd_tip**2 + max(fit.extrapolation_var(a_tip - amax), 0.0))
         arc = arc_length(centre, a_tip)
         if abs(arc - length) > 0.02 * length:
             raise FrameFailure(
