@@ -347,14 +347,27 @@ def test_time_convergence(rig_beam: BeamProperties) -> None:
     assert errs[2] < 1e-5
 
 
-def test_fixed_step_radau5_converges_at_fifth_order(rig_beam: BeamProperties) -> None:
+#: The fixed-step tests' scene: a damped, reciprocating beam (drive and damping off the
+#: paper's on purpose), 2 elements, radau5.
+_FIXED_T = np.linspace(0.0, 1.2, 121)
+_FIXED_DRIVE = SinusoidDrive(0.6, 5.6)
+_FIXED_KW: dict[str, Any] = {"n_elements": 2, "a0_per_s": 0.15, "a1_s": 0.08, "method": "radau5"}
+
+
+@pytest.fixture(scope="module")
+def fixed_step_reference(rig_beam: BeamProperties) -> Any:
+    """The fixed-step tests' reference: the adaptive solution at a tight tolerance,
+    computed once for both."""
+    return simulate_fe(rig_beam, _FIXED_DRIVE, _FIXED_T, rtol=1e-10, atol=1e-10, **_FIXED_KW)
+
+
+def test_fixed_step_radau5_converges_at_fifth_order(
+    rig_beam: BeamProperties, fixed_step_reference: Any
+) -> None:
     # the fixed-step rows of `bench sim`: radau5 without step control on a damped,
     # reciprocating beam (drive and damping off the paper's on purpose) converges to the
     # adaptive solution at a tight tolerance as h^5, Radau IIA's order (measured 5.0, 4.97)
-    t = np.linspace(0.0, 1.2, 121)
-    drive = SinusoidDrive(0.6, 5.6)
-    kw: dict[str, Any] = {"n_elements": 2, "a0_per_s": 0.15, "a1_s": 0.08, "method": "radau5"}
-    ref = simulate_fe(rig_beam, drive, t, rtol=1e-10, atol=1e-10, **kw)
+    t, drive, kw, ref = _FIXED_T, _FIXED_DRIVE, _FIXED_KW, fixed_step_reference
     amp = np.max(np.abs(ref.tip_lateral_m))
     errs = []
     for h in (0.02, 0.01, 0.005):
@@ -372,17 +385,14 @@ def test_fixed_step_radau5_converges_at_fifth_order(rig_beam: BeamProperties) ->
 
 
 def test_more_radau_stages_cut_the_time_error_at_the_same_fixed_step(
-    rig_beam: BeamProperties,
+    rig_beam: BeamProperties, fixed_step_reference: Any
 ) -> None:
     # the 5-stage rows of `bench sim`: on the damped, reciprocating beam (drive and damping
     # off the paper's, as above) every added stage cuts the error against the tight adaptive
     # solution by more than 10x at the same step (measured at h = 0.02 s: 1.1e-5, 3.8e-7,
     # 5.6e-9 of the tip for 3, 4, 5 stages; orders 5, 7, 9 on smooth problems, less on this
     # stiff one, whose stiff components converge at the stage order)
-    t = np.linspace(0.0, 1.2, 121)
-    drive = SinusoidDrive(0.6, 5.6)
-    kw: dict[str, Any] = {"n_elements": 2, "a0_per_s": 0.15, "a1_s": 0.08, "method": "radau5"}
-    ref = simulate_fe(rig_beam, drive, t, rtol=1e-10, atol=1e-10, **kw)
+    t, drive, kw, ref = _FIXED_T, _FIXED_DRIVE, _FIXED_KW, fixed_step_reference
     amp = np.max(np.abs(ref.tip_lateral_m))
     errs = []
     for stages in (3, 4, 5):
