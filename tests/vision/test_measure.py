@@ -11,6 +11,7 @@ from vision import (
     calibration_from_registration,
     detect_registration_corners,
 )
+from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
 from vision.codec import decode, encode
 from vision.config import CameraConfig, CameraPoseConfig, RegistrationConfig
 from vision.synthetic.render import render_frame, static_layers
@@ -24,6 +25,19 @@ def _errors(m, tr) -> tuple[float, float, float]:
         (m.tip_lateral_m - tr.tip_lateral_m) * 1e3,
         (m.tip_longitudinal_m - tr.tip_longitudinal_m) * 1e3,
     )
+
+
+def _swinging_cantilever(vt, hub_deg: float, amp, accel: float, peak_m: float) -> BeamPose:
+    """A cantilever's shape on a swinging hub: the first three modes' static responses
+    (amplitudes ``amp``) and a uniform inertial load (``accel``), scaled to ``peak_m`` at
+    the tip (zero moment and shear at the free end)."""
+    beta4 = np.array(cantilever_eigenvalues(3)) ** 4
+
+    def load(s):  # type: ignore[no-untyped-def]
+        x = s / vt.L_M
+        return 8 * accel * (0.01 + x) + (np.array(amp) * beta4) @ cantilever_modes_t(x, 3)
+
+    return BeamPose.from_load(math.radians(hub_deg), vt.L_M, load, peak_m)
 
 
 def test_nominal_frames_are_measured_within_bounds(nominal_spec, vt) -> None:
@@ -241,8 +255,6 @@ def test_a_cantilevers_shape_on_a_short_hub_is_measured_through_its_modes(vt) ->
     so the axis comes from the root with about a third of the generic polynomial's
     noise: the hub angle within 0.01 deg (3 sigma of the ~0.003 deg the bench sets
     show) and inside 3 stated standard uncertainties, every frame."""
-    from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
-
     spec = vt.make_spec(
         noise_dn=2.0,
         seed=23,
@@ -250,19 +262,12 @@ def test_a_cantilevers_shape_on_a_short_hub_is_measured_through_its_modes(vt) ->
         hub_width_m=0.051,
         pose=CameraPoseConfig(tilt_rad=math.radians(11.0)),
     )
-    beta4 = np.array(cantilever_eigenvalues(3)) ** 4
     for hub_deg, amp, accel, peak in (
         (252.0, (1.0, 0.1, -0.03), 0.5, 0.03),
         (288.0, (-0.6, 0.15, 0.02), -1.0, -0.025),
         (322.0, (0.3, -0.12, 0.04), 0.8, 0.02),
     ):
-
-        def load(s, amp=amp, accel=accel):
-            x = s / vt.L_M
-            return 8 * accel * (0.01 + x) + (np.array(amp) * beta4) @ cantilever_modes_t(x, 3)
-
-        pose = BeamPose.from_load(math.radians(hub_deg), vt.L_M, load, peak)
-        frame = render_frame(spec, [pose])
+        frame = render_frame(spec, [_swinging_cantilever(vt, hub_deg, amp, accel, peak)])
         m = Measurer(vt.truth_calibration(frame.truth)).measure(frame.image)
         assert m.ok, m.reason
         e = _errors(m, frame.truth)
@@ -279,8 +284,6 @@ def test_the_modes_state_their_own_error_not_the_polynomials_noise(vt) -> None:
     what two more modes change (their truncation) and by the polynomial's extra shapes
     only as far as they rise above their noise, they state less than the polynomial
     alone, and every error stays inside 3 stated standard uncertainties."""
-    from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
-
     spec = vt.make_spec(
         noise_dn=2.5,
         seed=29,
@@ -288,7 +291,6 @@ def test_the_modes_state_their_own_error_not_the_polynomials_noise(vt) -> None:
         hub_width_m=0.051,
         pose=CameraPoseConfig(tilt_rad=math.radians(9.0)),
     )
-    beta4 = np.array(cantilever_eigenvalues(3)) ** 4
     modal_sd, poly_sd = [], []
     for hub_deg, amp, accel, peak in (
         (246.0, (0.8, -0.1, 0.02), 0.7, 0.033),
@@ -296,13 +298,7 @@ def test_the_modes_state_their_own_error_not_the_polynomials_noise(vt) -> None:
         (297.0, (0.5, 0.1, -0.04), 1.0, 0.035),
         (316.0, (-0.7, -0.08, 0.02), -0.9, -0.022),
     ):
-
-        def load(s, amp=amp, accel=accel):
-            x = s / vt.L_M
-            return 8 * accel * (0.01 + x) + (np.array(amp) * beta4) @ cantilever_modes_t(x, 3)
-
-        pose = BeamPose.from_load(math.radians(hub_deg), vt.L_M, load, peak)
-        frame = render_frame(spec, [pose])
+        frame = render_frame(spec, [_swinging_cantilever(vt, hub_deg, amp, accel, peak)])
         cal = vt.truth_calibration(frame.truth)
         m = Measurer(cal).measure(frame.image)
         poly = Measurer(cal, shape_modes=0).measure(frame.image)
@@ -348,21 +344,12 @@ def test_a_beam_swung_far_aside_is_measured_not_refused_as_damaged(vt) -> None:
     wider apart at the tip than at the root. Fitted with a constant width they left
     runs in the residuals (correlated 0.85-0.96) and the frame was refused as
     "damaged or occluded"; now measured within 3 stated standard uncertainties."""
-    from vision.centreline import cantilever_eigenvalues, cantilever_modes_t
-
     spec = vt.make_spec(noise_dn=3.0, seed=71, pose=CameraPoseConfig(tilt_rad=math.radians(16.0)))
-    beta4 = np.array(cantilever_eigenvalues(3)) ** 4
     for hub_deg, amp, accel, peak in (
         (262.0, (1.0, 0.08, -0.02), 0.6, 0.150),
         (306.0, (-1.0, 0.1, 0.03), -0.8, -0.152),
     ):
-
-        def load(s, amp=amp, accel=accel):
-            x = s / vt.L_M
-            return 8 * accel * (0.01 + x) + (np.array(amp) * beta4) @ cantilever_modes_t(x, 3)
-
-        pose = BeamPose.from_load(math.radians(hub_deg), vt.L_M, load, peak)
-        frame = render_frame(spec, [pose])
+        frame = render_frame(spec, [_swinging_cantilever(vt, hub_deg, amp, accel, peak)])
         image = decode(encode(frame.image, "jpeg", 85))
         m = Measurer(vt.truth_calibration(frame.truth)).measure(image)
         assert m.ok, m.reason
