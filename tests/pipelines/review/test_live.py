@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
-import time
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -112,16 +112,21 @@ def test_a_10_s_realtime_capture_with_the_view_keeps_every_sample_and_frame(
     assert {v.origin for v in blueprint_views(tmp_path / "live.rrd")} >= {"/camera", "/events"}
 
 
-class _SlowViewer:
-    """A viewer that takes 50 ms for everything: the view falls behind."""
+class _StuckViewer:
+    """A viewer stuck in its first call until ``release`` is set: the view falls behind by
+    as much as the test likes."""
+
+    def __init__(self) -> None:
+        self.release = threading.Event()
 
     def __getattr__(self, name: str) -> object:
-        return lambda *args, **kwargs: time.sleep(0.05)
+        return lambda *args, **kwargs: self.release.wait()
 
 
 def test_a_view_that_falls_behind_drops_its_own_records_and_never_blocks() -> None:
-    slow: Any = _SlowViewer()
-    live = LiveView(slow, load_rig(), queue_size=8)
+    stuck = _StuckViewer()
+    viewer: Any = stuck
+    live = LiveView(viewer, load_rig(), queue_size=8)
     block = SampleBlock(
         np.arange(40, dtype=np.int64) * 2_500_000,
         np.zeros(40),
@@ -129,13 +134,18 @@ def test_a_view_that_falls_behind_drops_its_own_records_and_never_blocks() -> No
         np.zeros((40, 5)),
         0,
     )
-    t0 = time.perf_counter()
-    for _ in range(200):
-        live.samples(block)
-    offered_s = time.perf_counter() - t0
+    # The view takes nothing more until the 200 offers are made: an offer that waited for
+    # it would never return (the thread below is the hang guard, not a timer on speed).
+    offering = threading.Thread(target=lambda: [live.samples(block) for _ in range(200)])
+    offering.start()
+    offering.join(timeout=60.0)
+    finished = not offering.is_alive()
+    stuck.release.set()
+    offering.join()
     stats = live.close(timeout_s=5.0)
-    assert offered_s < 0.5  # 200 offers while the view needs 50 ms for each it takes
-    assert stats.dropped >= 150
+    assert finished, "an offer waited for the view"
+    # the view holds at most one record and its queue eight: every other offer is dropped
+    assert stats.dropped >= 200 - 8 - 1
     assert stats.sample_blocks + stats.dropped == 200
 
 
