@@ -233,10 +233,7 @@ def _smeared(rng: np.random.Generator, smear_m: float) -> list[BeamPose]:
     lat_rate = mode_sign * (1 - share) * speed * mode
     exposure = smear_m / speed
     motion = BeamMotion(pose, hub_rate, lat_rate)
-    # Slices by the fastest point, not the tip (which barely moves when the two cancel).
-    fastest = float(np.max(np.abs(hub_rate * radius + lat_rate)))
-    n = max(1, math.ceil(fastest * exposure / SMEAR_STEP_M))
-    return [motion.at(((k + 0.5) / n - 0.5) * exposure) for k in range(n)]
+    return motion.exposure_poses(exposure, HUB_OFFSET_M, max_step_m=SMEAR_STEP_M)
 
 
 def _framing(

@@ -192,6 +192,15 @@ class BeamMotion:
         reach = hub_offset_m + p.stations_m[-1] + p.longitudinal_m[-1]
         return abs(self.hub_rate_rad_s * reach + self.lateral_rate_m_s[-1])
 
+    def fastest_speed_m_s(self, hub_offset_m: float) -> float:
+        """Speed across the beam of its fastest point (m/s): the tip's when the hub's turn
+        and the beam's own rate add, a point nearer the root when they counter-move (the
+        beam lagging the hub near a stroke end, its tip then barely moving)."""
+        assert self.lateral_rate_m_s is not None
+        p = self.pose
+        radius = hub_offset_m + p.stations_m + p.longitudinal_m
+        return float(np.max(np.abs(self.hub_rate_rad_s * radius + self.lateral_rate_m_s)))
+
     def tip_smear_m(self, exposure_s: float, hub_offset_m: float) -> float:
         """How far the tip moves across the beam during the exposure (m)."""
         return self.tip_speed_m_s(hub_offset_m) * exposure_s
@@ -200,14 +209,14 @@ class BeamMotion:
         self, exposure_s: float, hub_offset_m: float, max_step_m: float = 2e-4
     ) -> list[BeamPose]:
         """Poses at the midpoints of equal slices of the exposure, enough slices that
-        the tip moves at most ``max_step_m`` per slice (the renderer averages their
-        coverage: the midpoint rule for the time-average, exact for the smear's width to
-        a slice). One pose for a still beam."""
+        no point of the beam moves more than ``max_step_m`` per slice (the renderer
+        averages their coverage: the midpoint rule for the time-average, exact for the
+        smear's width to a slice). One pose for a still beam."""
         if not math.isfinite(exposure_s) or exposure_s < 0:
             raise ParameterError("exposure_s", f"must be >= 0, got {exposure_s!r}")
         if not max_step_m > 0:
             raise ParameterError("max_step_m", f"must be > 0, got {max_step_m!r}")
-        smear = self.tip_smear_m(exposure_s, hub_offset_m)
+        smear = self.fastest_speed_m_s(hub_offset_m) * exposure_s
         n = max(1, math.ceil(smear / max_step_m))
         t = (np.arange(n) + 0.5) / n - 0.5
         return [self.at(float(k) * exposure_s) for k in t]

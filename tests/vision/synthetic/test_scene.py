@@ -62,6 +62,24 @@ def test_an_exposure_samples_the_motion_at_slice_midpoints(vt) -> None:
         motion.exposure_poses(-1.0, 0.008)
 
 
+def test_an_exposure_is_sliced_by_its_fastest_point_not_its_tip(vt) -> None:
+    """The hub turning one way and the beam's first mode the other so that the tip stands
+    still: mid-beam still moves across the beam, and no point may move more than a step
+    in a slice (one slice, as when the tip set the count, would render it unsmeared)."""
+    pose = vt.bent(1.0, 0.05)
+    radius = 0.008 + pose.stations_m + pose.longitudinal_m
+    x = pose.stations_m / vt.L_M
+    shape = x**2 * (6 - 4 * x + x**2) / 3  # 1 at the tip
+    motion = BeamMotion(pose, 2.0, -2.0 * radius[-1] * shape)
+    assert motion.tip_smear_m(0.01, 0.008) == pytest.approx(0.0, abs=1e-12)
+    fastest = np.max(np.abs(2.0 * radius - 2.0 * radius[-1] * shape))
+    assert motion.fastest_speed_m_s(0.008) == pytest.approx(fastest)
+    poses = motion.exposure_poses(0.01, 0.008, max_step_m=1e-3)
+    assert len(poses) == math.ceil(fastest * 0.01 / 1e-3) > 1
+    lateral = [radius * p.hub_angle_rad + p.lateral_m for p in poses]  # small turns
+    assert np.max(np.abs(np.diff(lateral, axis=0))) <= 1e-3 + 1e-12
+
+
 def _linear_deflection(pose: BeamPose) -> tuple[np.ndarray, np.ndarray]:
     """The linear theory's deflection int theta of an inextensible pose, at its stations."""
     s = pose.stations_m
