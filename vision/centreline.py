@@ -365,6 +365,16 @@ def long_run_inflation(res: NDArray[np.float64], max_lag: int = LONG_RUN_LAGS) -
     return long_run_inflation_max([np.asarray(res, dtype=np.float64)], max_lag)
 
 
+@lru_cache(maxsize=128)
+def _bartlett(k_max: int) -> NDArray[np.float64]:
+    """Bartlett's window ``1 - k / (K + 1)`` at lags ``k = 1 .. K`` (read-only; the same
+    for every edge of at least ``4 K`` points)."""
+    lags = np.arange(1, k_max + 1)
+    out = 1.0 - lags / (k_max + 1.0)
+    out.setflags(write=False)
+    return out
+
+
 def long_run_inflation_max(spans: list[NDArray[np.float64]], max_lag: int = LONG_RUN_LAGS) -> float:
     """The largest :func:`long_run_inflation` over residual ``spans`` (one per edge),
     their autocorrelations taken in one transform."""
@@ -384,8 +394,7 @@ def long_run_inflation_max(spans: list[NDArray[np.float64]], max_lag: int = LONG
         if den <= 0:
             continue
         k_max = int(min(max_lag, len(x) // 4))
-        lags = np.arange(1, k_max + 1)
-        factor = 1.0 + 2.0 * float((1.0 - lags / (k_max + 1.0)) @ acov[i, 1 : k_max + 1]) / den
+        factor = 1.0 + 2.0 * float(_bartlett(k_max) @ acov[i, 1 : k_max + 1]) / den
         best = max(best, factor)
     return best
 

@@ -12,6 +12,7 @@ from vision.centreline import (
     fit_centreline,
     fit_clamped_joint,
     long_run_inflation,
+    long_run_inflation_max,
 )
 
 L_M, W_M = 0.835, 0.01905
@@ -289,6 +290,31 @@ def test_long_run_inflation_counts_what_does_not_cancel() -> None:
     wave = np.sin(2 * np.pi * np.arange(800) / 12.0) + 0.2 * rng.standard_normal(800)
     assert correlation_inflation(wave) > 7.0
     assert long_run_inflation(wave) < 1.5
+
+
+def test_long_run_inflation_of_each_length_against_direct_sums() -> None:
+    """Edges of different lengths sum different numbers of lags (``K = min(64, N / 4)``,
+    Bartlett's window over ``K`` cached per ``K``): each factor, asked for in an order
+    that revisits lengths, equals the autocorrelations summed directly (an independent
+    code: no transform), and the many-span form is their largest."""
+    rng = np.random.default_rng(23)
+    spans = []
+    for n, rho in ((1000, 0.6), (40, 0.3), (200, -0.2), (36, 0.7), (1000, 0.1)):
+        x = np.zeros(n)
+        for i in range(1, n):
+            x[i] = rho * x[i - 1] + rng.standard_normal()
+        spans.append(x)
+
+    def direct(x: np.ndarray) -> float:
+        k_max = min(64, len(x) // 4)
+        den = float(x @ x)
+        acf = [float(x[k:] @ x[:-k]) / den for k in range(1, k_max + 1)]
+        weights = [1.0 - k / (k_max + 1.0) for k in range(1, k_max + 1)]
+        return max(1.0, 1.0 + 2.0 * sum(w * r for w, r in zip(weights, acf, strict=True)))
+
+    for x in spans + spans[::-1]:
+        assert math.isclose(long_run_inflation(x), direct(x), rel_tol=1e-12, abs_tol=1e-12)
+    assert math.isclose(long_run_inflation_max(spans), max(direct(x) for x in spans), rel_tol=1e-12)
 
 
 def _normal_edges(slope_of_a, b_of_a, half_w, n=800):
