@@ -51,6 +51,7 @@ class CentreLine:
         # d/da of the series in u = a / amax (numpy.polynomial's polyder, without its
         # generic machinery: this is built once per frame).
         self.dcoef = self.coef[1:] * np.arange(1, len(self.coef)) / self.amax
+        self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
 
     def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         a = np.asarray(a, dtype=np.float64)
@@ -153,6 +154,7 @@ class ModalCentreLine:
         self.coef = np.asarray(coef, dtype=np.float64)
         self.beam_length = float(beam_length)
         self.amax = float(amax)
+        self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
 
     @cached_property
     def _tables(self) -> tuple[NDArray[np.float64], ...]:
@@ -207,7 +209,19 @@ class ModalCentreLine:
 
 def arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
     """Arc length and the large-slope correction along ``centre`` as functions of ``a``
-    (tabulated to 1.1 ``a_end``)."""
+    (tabulated to 1.1 ``a_end``). Kept on ``centre`` by ``a_end``: a frame's modal fit
+    and its more-modes reference ask for the same one (a centre line's coefficients are
+    not changed after it is made)."""
+    cached = centre._arc_maps.get(a_end)
+    if cached is None:
+        if len(centre._arc_maps) >= 8:
+            centre._arc_maps.clear()
+        cached = centre._arc_maps[a_end] = _arc_map(centre, a_end)
+    return cached
+
+
+def _arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
+    """:func:`arc_map`, computed."""
     if isinstance(centre, ModalCentreLine):
         a, s, slope = centre._a, centre._s, centre._slope
     else:
@@ -245,7 +259,8 @@ class CentreFit:
     ``left``/``right``: the inlier edge points (N, 2) (a, b); ``width``: distance between
     the edges; ``rms``: RMS residual of the inliers; ``tip_sd``: standard uncertainty of
     the centre line at ``a_max`` (noise only, inflated for residuals correlated along the
-    edge); ``root_slope_rad``: the slope at the clamp of a fit without the clamped prior.
+    edge); ``root_slope_rad``: the slope at the clamp of a fit without the clamped prior
+    (NaN for :func:`fit_clamped_joint`'s reference on another fit's ``inliers``).
     """
 
     centre: CentreLine | ModalCentreLine
@@ -652,7 +667,9 @@ def fit_clamped_joint(
 
     ``inliers``: another fit's :attr:`JointFit.inliers` on the same points (the modal
     fit's, for its polynomial and more-modes references): taken instead of choosing them
-    again, one fit instead of up to six (ignored where that fit dropped the hub's edges).
+    again, one fit instead of up to six (ignored where that fit dropped the hub's edges);
+    such a reference has no shape test and no free root slope (NaN: the fit whose
+    inliers it takes checks its root).
 
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
     if modes <= 0:
@@ -834,25 +851,28 @@ def _fit_joint(
         return float(g_tip @ cov @ g_slope), float(g_slope @ cov @ g_slope)
 
     # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
-    # free offset and a free slope at the root. Its rows (width, offset, slope, shape)
-    # gathered to the inliers in one pass, from one array (a column-major gather: the
-    # products below then run in the order they always have).
+    # free offset and a free slope at the root (not for a reference on another fit's
+    # inliers, whose root is that fit's to check). Its rows (width, offset, slope,
+    # shape) gathered to the inliers in one pass, from one array (a column-major gather:
+    # the products below then run in the order they always have).
     kb = keep[:n_beam]
     n_kb = int(np.count_nonzero(kb))
-    ab = np.empty((3 + p_shape, n_beam))
-    ab[0] = a_t[0, :n_beam]
-    ab[1] = 1.0
-    ab[2] = u
-    ab[3:] = a_t[n_coef - p_shape :, :n_beam]
-    abk = ab[:, kb]
     yb = b[:n_beam][kb]
-    gram_free = abk @ abk.T
-    free = np.linalg.solve(gram_free, abk @ yb)
-    slope = float(free[2]) / amax
-    res_free = yb - free @ abk
-    s2_free = float(res_free @ res_free) / max(n_kb - len(free), 1)
-    slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
-    slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
+    slope, slope_sd = math.nan, math.nan
+    if not given:
+        ab = np.empty((3 + p_shape, n_beam))
+        ab[0] = a_t[0, :n_beam]
+        ab[1] = 1.0
+        ab[2] = u
+        ab[3:] = a_t[n_coef - p_shape :, :n_beam]
+        abk = ab[:, kb]
+        gram_free = abk @ abk.T
+        free = np.linalg.solve(gram_free, abk @ yb)
+        slope = float(free[2]) / amax
+        res_free = yb - free @ abk
+        s2_free = float(res_free @ res_free) / max(n_kb - len(free), 1)
+        slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
+        slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
     centre: CentreLine | ModalCentreLine
     if modal is None:
         centre = CentreLine(_to_power(degree).T @ coef[n_coef - p_shape :], amax)

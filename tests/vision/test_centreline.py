@@ -408,3 +408,21 @@ def test_the_lateral_beyond_the_last_edge_point_states_its_scatter(modes: int) -
     # The sd of a sample sd from 400 draws is ~3.5 % of it: 4 sd of that. (The value's
     # own sd alone gave the polynomial 1.16 of it: the slope's share over 30 mm.)
     assert scatter < 1.14 * float(np.mean(stated)), (scatter, np.mean(stated), np.mean(own))
+
+
+def test_arc_maps_are_kept_per_centre_line_and_end() -> None:
+    """``arc_map`` keeps its table on the centre line, by end: asked again for the same
+    end it gives the same table; another end, or another centre line with the same end,
+    gets its own, equal to one computed afresh."""
+    from vision.centreline import CentreLine, _arc_map, arc_map
+
+    bent = CentreLine(np.array([0.0, 0.0, 0.08, -0.03]), 0.8)
+    straight = CentreLine(np.array([0.0, 0.0, 0.0, 0.0]), 0.8)
+    first = arc_map(bent, 0.8)
+    assert arc_map(bent, 0.8) is first
+    for centre, end in ((bent, 0.7), (straight, 0.8), (bent, 0.8)):
+        got, fresh = arc_map(centre, end), _arc_map(centre, end)
+        for name in ("a", "s", "corr"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(fresh, name))
+    assert arc_map(straight, 0.8).s[-1] < first.s[-1]  # the bent line is the longer
+    assert arc_map(bent, 0.7).a[-1] < first.a[-1]
