@@ -51,6 +51,7 @@ class CentreLine:
         # d/da of the series in u = a / amax (numpy.polynomial's polyder, without its
         # generic machinery: this is built once per frame).
         self.dcoef = self.coef[1:] * np.arange(1, len(self.coef)) / self.amax
+        self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
 
     def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         a = np.asarray(a, dtype=np.float64)
@@ -153,6 +154,7 @@ class ModalCentreLine:
         self.coef = np.asarray(coef, dtype=np.float64)
         self.beam_length = float(beam_length)
         self.amax = float(amax)
+        self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
 
     @cached_property
     def _tables(self) -> tuple[NDArray[np.float64], ...]:
@@ -207,7 +209,19 @@ class ModalCentreLine:
 
 def arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
     """Arc length and the large-slope correction along ``centre`` as functions of ``a``
-    (tabulated to 1.1 ``a_end``)."""
+    (tabulated to 1.1 ``a_end``). Kept on ``centre`` by ``a_end``: a frame's modal fit
+    and its more-modes reference ask for the same one (a centre line's coefficients are
+    not changed after it is made)."""
+    cached = centre._arc_maps.get(a_end)
+    if cached is None:
+        if len(centre._arc_maps) >= 8:
+            centre._arc_maps.clear()
+        cached = centre._arc_maps[a_end] = _arc_map(centre, a_end)
+    return cached
+
+
+def _arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
+    """:func:`arc_map`, computed."""
     if isinstance(centre, ModalCentreLine):
         a, s, slope = centre._a, centre._s, centre._slope
     else:
@@ -245,7 +259,8 @@ class CentreFit:
     ``left``/``right``: the inlier edge points (N, 2) (a, b); ``width``: distance between
     the edges; ``rms``: RMS residual of the inliers; ``tip_sd``: standard uncertainty of
     the centre line at ``a_max`` (noise only, inflated for residuals correlated along the
-    edge); ``root_slope_rad``: the slope at the clamp of a fit without the clamped prior.
+    edge); ``root_slope_rad``: the slope at the clamp of a fit without the clamped prior
+    (NaN for :func:`fit_clamped_joint`'s reference on another fit's ``inliers``).
     """
 
     centre: CentreLine | ModalCentreLine
@@ -306,11 +321,13 @@ def _basis(u: NDArray[np.float64], degree: int) -> NDArray[np.float64]:
     return np.asarray(leg * (u * u)[:, None])
 
 
-def _basis_t(u: NDArray[np.float64], degree: int) -> NDArray[np.float64]:
+def _basis_t(
+    u: NDArray[np.float64], degree: int, out: NDArray[np.float64] | None = None
+) -> NDArray[np.float64]:
     """:func:`_basis` transposed, (degree - 1, N), built in that layout (numpy's own
-    Legendre recurrence, so the same values)."""
+    Legendre recurrence, so the same values); into ``out`` when given."""
     x = 2.0 * u - 1.0
-    v = np.empty((degree - 1, len(u)))
+    v = np.empty((degree - 1, len(u))) if out is None else out
     v[0] = x * 0 + 1
     if degree > 2:
         v[1] = x
@@ -363,6 +380,16 @@ def long_run_inflation(res: NDArray[np.float64], max_lag: int = LONG_RUN_LAGS) -
     return long_run_inflation_max([np.asarray(res, dtype=np.float64)], max_lag)
 
 
+@lru_cache(maxsize=128)
+def _bartlett(k_max: int) -> NDArray[np.float64]:
+    """Bartlett's window ``1 - k / (K + 1)`` at lags ``k = 1 .. K`` (read-only; the same
+    for every edge of at least ``4 K`` points)."""
+    lags = np.arange(1, k_max + 1)
+    out = 1.0 - lags / (k_max + 1.0)
+    out.setflags(write=False)
+    return out
+
+
 def long_run_inflation_max(spans: list[NDArray[np.float64]], max_lag: int = LONG_RUN_LAGS) -> float:
     """The largest :func:`long_run_inflation` over residual ``spans`` (one per edge),
     their autocorrelations taken in one transform."""
@@ -382,8 +409,7 @@ def long_run_inflation_max(spans: list[NDArray[np.float64]], max_lag: int = LONG
         if den <= 0:
             continue
         k_max = int(min(max_lag, len(x) // 4))
-        lags = np.arange(1, k_max + 1)
-        factor = 1.0 + 2.0 * float((1.0 - lags / (k_max + 1.0)) @ acov[i, 1 : k_max + 1]) / den
+        factor = 1.0 + 2.0 * float(_bartlett(k_max) @ acov[i, 1 : k_max + 1]) / den
         best = max(best, factor)
     return best
 
@@ -466,7 +492,12 @@ def _orthonormal_rows(x: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.
     where LAPACK's threaded QR stalls on a busy host). A row with
     less than 1e-9 of its norm left is dropped; also how many of the first ``n_first``
     rows were kept."""
-    rows = np.array(x, dtype=np.float64)
+    return _orthonormalise(np.array(x, dtype=np.float64), n_first)
+
+
+def _orthonormalise(rows: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.float64], int]:
+    """:func:`_orthonormal_rows` on a float64 array of the caller's that it overwrites
+    (no copy)."""
     q = np.empty_like(rows)
     k = 0
     kept_first = 0
@@ -489,13 +520,51 @@ def _orthonormal_rows(x: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.
     return q[:k], kept_first
 
 
-def _wlstsq(a_t: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray:
+def _wlstsq(
+    a_t: NDArray[np.float64],
+    b: NDArray[np.float64],
+    w: NDArray[np.float64],
+    out: NDArray[np.float64] | None = None,
+) -> NDArray:
     """Weighted least squares with the design matrix transposed (coefficients, points).
 
     Normal equations of a small, well-conditioned basis (Legendre on [0, 1]): a tenth of
-    the cost of an SVD solve, which matters at a frame rate."""
-    aw = a_t * w
+    the cost of an SVD solve, which matters at a frame rate. ``out``: a buffer of
+    ``a_t``'s shape for the weighted matrix (the same products, no fresh array)."""
+    aw = np.multiply(a_t, w, out=out)
     return np.asarray(np.linalg.solve(aw @ a_t.T, aw @ b))
+
+
+def _group_scales(
+    r: NDArray[np.float64],
+    groups: list[slice],
+    keep: NDArray[np.bool_] | None,
+    sig: NDArray[np.float64],
+) -> None:
+    """Each group's robust scale of the residuals ``r`` (its ``keep`` points; None: all),
+    ``1.4826 median |r| + 1e-12`` (1 for a group with none), written into ``sig``.
+
+    :func:`vision.sampling.median`'s values: the same partition of the same numbers, on
+    the fresh ``|r|`` in place (no copy); with a NaN residual, that function itself."""
+    finite = not np.isnan(r).any()
+    for g in groups:
+        rg = r[g] if keep is None else r[g][keep[g]]
+        n = len(rg)
+        if not n:
+            sig[g] = 1.0
+            continue
+        if finite:
+            a = np.abs(rg)
+            k = n // 2
+            if n % 2:
+                a.partition(k)
+                med = float(a[k])
+            else:
+                a.partition([k - 1, k])
+                med = float(0.5 * (a[k - 1] + a[k]))
+        else:
+            med = median(np.abs(rg))
+        sig[g] = 1.4826 * med + 1e-12
 
 
 #: Trapezoid samples along the centre line for arc lengths: the rule's error,
@@ -598,7 +667,9 @@ def fit_clamped_joint(
 
     ``inliers``: another fit's :attr:`JointFit.inliers` on the same points (the modal
     fit's, for its polynomial and more-modes references): taken instead of choosing them
-    again, one fit instead of up to six (ignored where that fit dropped the hub's edges).
+    again, one fit instead of up to six (ignored where that fit dropped the hub's edges);
+    such a reference has no shape test and no free root slope (NaN: the fit whose
+    inliers it takes checks its root).
 
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
     if modes <= 0:
@@ -701,27 +772,27 @@ def _fit_joint(
         # The modes give the linear theory's deflection, int theta; an edge point lies
         # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
         b[:n_beam] += modal.correction(a_all[:n_beam])
-    groups = [np.arange(n_beam), np.arange(n_beam, n_all)] if use_hub else [np.arange(n_beam)]
+    # The groups (the beam's edges, the hub's) as slices: views, not gathers.
+    groups = [slice(0, n_beam), slice(n_beam, n_all)] if use_hub else [slice(0, n_beam)]
+    # One buffer for the weighted design matrix of every solve below (the same products
+    # as ``a_t * w`` each time, without a fresh array of ~0.2 MB per solve).
+    aw = np.empty_like(a_t)
     w = np.ones(n_all)
     keep = np.ones(n_all, dtype=bool)
     sig = np.ones(n_all)
     given = inliers is not None and len(inliers) == n_all
     if given:  # another fit's inliers: each group's scale from one fit to them
         keep = np.asarray(inliers, dtype=bool).copy()
-        r = b - _wlstsq(a_t, b, keep.astype(np.float64)) @ a_t
-        for g in groups:
-            rg = r[g][keep[g]]
-            sig[g] = 1.4826 * median(np.abs(rg)) + 1e-12 if len(rg) else 1.0
+        r = b - _wlstsq(a_t, b, keep.astype(np.float64), aw) @ a_t
+        _group_scales(r, groups, keep, sig)
     for it in range(0 if given else 5):
-        coef = _wlstsq(a_t, b, w / sig**2)
+        coef = _wlstsq(a_t, b, w / sig**2, aw)
         r = b - coef @ a_t
-        for g in groups:
-            rg = r[g] if it == 0 else r[g][keep[g]]
-            sig[g] = 1.4826 * median(np.abs(rg)) + 1e-12 if len(rg) else 1.0
+        _group_scales(r, groups, None if it == 0 else keep, sig)
         z = r / (TUKEY_C * sig)
         inside = np.abs(z) < 1.0
         w = np.where(inside, (1.0 - z * z) ** 2, 0.0)
-        if it >= 2 and np.array_equal(inside, keep):
+        if it >= 2 and bool((inside == keep).all()):
             break
         keep = inside
     if keep[:nl].sum() < degree + 4 or keep[nl:n_beam].sum() < degree + 4:
@@ -743,25 +814,26 @@ def _fit_joint(
         )
     # Final fit: the inliers, each group at its own variance (from its residuals).
     wk = np.zeros(n_all)
-    r = b - _wlstsq(a_t, b, np.where(keep, 1.0 / sig**2, 0.0)) @ a_t
-    s2 = []
+    r = b - _wlstsq(a_t, b, np.where(keep, 1.0 / sig**2, 0.0), aw) @ a_t
     for g in groups:
-        kg = g[keep[g]]
-        dof = max(len(kg) - (p_shape + 2 if g[0] == 0 else 2), 1)
-        v = float(np.sum(r[kg] ** 2)) / dof if len(kg) else 1.0
-        s2.append(max(v, 1e-18))
-        wk[kg] = 1.0 / s2[-1]
-    gram = (a_t * wk) @ a_t.T
-    coef = np.linalg.solve(gram, (a_t * wk) @ b)
+        kg = keep[g]
+        nk = int(np.count_nonzero(kg))
+        dof = max(nk - (p_shape + 2 if g.start == 0 else 2), 1)
+        v = float(np.sum(r[g][kg] ** 2)) / dof if nk else 1.0
+        wk[g][kg] = 1.0 / max(v, 1e-18)
+    np.multiply(a_t, wk, out=aw)
+    gram = aw @ a_t.T
+    coef = np.linalg.solve(gram, aw @ b)
     r = b - coef @ a_t
     spans = [(0, nl), (nl, n_beam)]
     if use_hub:
         spans += [(n_beam, n_beam + len(hub_a)), (n_beam + len(hub_a), n_all)]
-    infl = long_run_inflation_max([r[i:j][keep[i:j]] for i, j in spans])
+    span_res = [r[i:j][keep[i:j]] for i, j in spans]
+    infl = long_run_inflation_max(span_res)
     cov = np.linalg.inv(gram) * infl
     g_tip = np.zeros(n_coef)
     if modal is None:
-        g_tip[n_coef - p_shape :] = _basis(np.array([1.0]), degree)[0]
+        g_tip[n_coef - p_shape :] = _tip_gradient(degree)[2:]
     else:
         g_tip[n_coef - p_shape :] = modal.basis_t(np.array([amax]))[:, 0]
     tip_sd = math.sqrt(max(float(g_tip @ cov @ g_tip), 0.0))
@@ -779,17 +851,28 @@ def _fit_joint(
         return float(g_tip @ cov @ g_slope), float(g_slope @ cov @ g_slope)
 
     # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
-    # free offset and a free slope at the root.
+    # free offset and a free slope at the root (not for a reference on another fit's
+    # inliers, whose root is that fit's to check). Its rows (width, offset, slope,
+    # shape) gathered to the inliers in one pass, from one array (a column-major gather:
+    # the products below then run in the order they always have).
     kb = keep[:n_beam]
-    ab = np.vstack([a_t[0, :n_beam], np.ones(n_beam), u, a_t[n_coef - p_shape :, :n_beam]])
-    abk = ab[:, kb]
-    gram_free = abk @ abk.T
-    free = np.linalg.solve(gram_free, abk @ b[:n_beam][kb])
-    slope = float(free[2]) / amax
-    res_free = b[:n_beam][kb] - free @ abk
-    s2_free = float(res_free @ res_free) / max(int(kb.sum()) - len(free), 1)
-    slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
-    slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
+    n_kb = int(np.count_nonzero(kb))
+    yb = b[:n_beam][kb]
+    slope, slope_sd = math.nan, math.nan
+    if not given:
+        ab = np.empty((3 + p_shape, n_beam))
+        ab[0] = a_t[0, :n_beam]
+        ab[1] = 1.0
+        ab[2] = u
+        ab[3:] = a_t[n_coef - p_shape :, :n_beam]
+        abk = ab[:, kb]
+        gram_free = abk @ abk.T
+        free = np.linalg.solve(gram_free, abk @ yb)
+        slope = float(free[2]) / amax
+        res_free = yb - free @ abk
+        s2_free = float(res_free @ res_free) / max(n_kb - len(free), 1)
+        slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
+        slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
     centre: CentreLine | ModalCentreLine
     if modal is None:
         centre = CentreLine(_to_power(degree).T @ coef[n_coef - p_shape :], amax)
@@ -801,12 +884,13 @@ def _fit_joint(
         left=left[keep[:nl]],
         right=right[keep[nl:n_beam]],
         width=float(coef[0]),
-        rms=math.sqrt(float(np.mean(rb**2))),
+        # np.mean's sum and division, without its dispatch
+        rms=math.sqrt(float(np.add.reduce(rb * rb)) / len(rb)),
         tip_sd=tip_sd,
         root_slope_rad=slope,
         root_slope_sd_rad=slope_sd,
-        edge_rho=max(lag1_correlation(r[i:j][keep[i:j]]) for i, j in spans[:2]),
-        outlier_fraction=1.0 - float(kb.mean()),
+        edge_rho=max(lag1_correlation(x) for x in span_res[:2]),
+        outlier_fraction=1.0 - n_kb / n_beam,
         end_cov=end_cov,
     )
     shape_chi2, shape_dof = math.nan, 0
@@ -815,19 +899,26 @@ def _fit_joint(
         # (its own width, turn and shape): the residual's components along the extra
         # shapes, orthonormalised against the modes', are independent N(0, sigma^2)
         # when the modes hold the shape, however near the two spaces lie.
-        x_m = np.vstack([a_t[0, :n_beam], a_t[1, :n_beam], a_t[n_coef - p_shape :, :n_beam]])
-        q, n_m = _orthonormal_rows(np.vstack([x_m, _basis_t(u, degree)])[:, kb], len(x_m))
-        yb = b[:n_beam][kb]
+        # The rows gathered row-major: each row's products then run over contiguous
+        # memory (half the time of the column-major gather's strided rows; the same
+        # algorithm, its rounding in another order).
+        n_m = 2 + p_shape
+        x = np.empty((n_m + degree - 1, n_beam))
+        x[0] = a_t[0, :n_beam]
+        x[1] = a_t[1, :n_beam]
+        x[2:n_m] = a_t[n_coef - p_shape :, :n_beam]
+        _basis_t(u, degree, out=x[n_m:])
+        q, n_m = _orthonormalise(x.compress(kb, axis=1), n_m)
         proj = q @ yb
         extra = proj[n_m:]
         shape_dof = len(extra)
         rss_u = float(yb @ yb - proj @ proj)
-        s2_u = max(rss_u, 1e-30) / max(int(kb.sum()) - len(q), 1)
+        s2_u = max(rss_u, 1e-30) / max(n_kb - len(q), 1)
         shape_chi2 = float(extra @ extra) / (s2_u * infl)
     if use_hub:
         rh = r[n_beam:][keep[n_beam:]]
         hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
-        hub_rms = math.sqrt(float(np.mean(rh**2)))
+        hub_rms = math.sqrt(float(np.add.reduce(rh * rh)) / len(rh))
     else:
         hub, hub_rms = (math.nan, math.nan), math.nan
     return JointFit(

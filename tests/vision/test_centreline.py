@@ -12,6 +12,7 @@ from vision.centreline import (
     fit_centreline,
     fit_clamped_joint,
     long_run_inflation,
+    long_run_inflation_max,
 )
 
 L_M, W_M = 0.835, 0.01905
@@ -291,6 +292,31 @@ def test_long_run_inflation_counts_what_does_not_cancel() -> None:
     assert long_run_inflation(wave) < 1.5
 
 
+def test_long_run_inflation_of_each_length_against_direct_sums() -> None:
+    """Edges of different lengths sum different numbers of lags (``K = min(64, N / 4)``,
+    Bartlett's window over ``K`` cached per ``K``): each factor, asked for in an order
+    that revisits lengths, equals the autocorrelations summed directly (an independent
+    code: no transform), and the many-span form is their largest."""
+    rng = np.random.default_rng(23)
+    spans = []
+    for n, rho in ((1000, 0.6), (40, 0.3), (200, -0.2), (36, 0.7), (1000, 0.1)):
+        x = np.zeros(n)
+        for i in range(1, n):
+            x[i] = rho * x[i - 1] + rng.standard_normal()
+        spans.append(x)
+
+    def direct(x: np.ndarray) -> float:
+        k_max = min(64, len(x) // 4)
+        den = float(x @ x)
+        acf = [float(x[k:] @ x[:-k]) / den for k in range(1, k_max + 1)]
+        weights = [1.0 - k / (k_max + 1.0) for k in range(1, k_max + 1)]
+        return max(1.0, 1.0 + 2.0 * sum(w * r for w, r in zip(weights, acf, strict=True)))
+
+    for x in spans + spans[::-1]:
+        assert math.isclose(long_run_inflation(x), direct(x), rel_tol=1e-12, abs_tol=1e-12)
+    assert math.isclose(long_run_inflation_max(spans), max(direct(x) for x in spans), rel_tol=1e-12)
+
+
 def _normal_edges(slope_of_a, b_of_a, half_w, n=800):
     """Edge points half the width either side of a centre line along its normal, read
     (as an edge scan does) at the a of each point."""
@@ -382,3 +408,21 @@ def test_the_lateral_beyond_the_last_edge_point_states_its_scatter(modes: int) -
     # The sd of a sample sd from 400 draws is ~3.5 % of it: 4 sd of that. (The value's
     # own sd alone gave the polynomial 1.16 of it: the slope's share over 30 mm.)
     assert scatter < 1.14 * float(np.mean(stated)), (scatter, np.mean(stated), np.mean(own))
+
+
+def test_arc_maps_are_kept_per_centre_line_and_end() -> None:
+    """``arc_map`` keeps its table on the centre line, by end: asked again for the same
+    end it gives the same table; another end, or another centre line with the same end,
+    gets its own, equal to one computed afresh."""
+    from vision.centreline import CentreLine, _arc_map, arc_map
+
+    bent = CentreLine(np.array([0.0, 0.0, 0.08, -0.03]), 0.8)
+    straight = CentreLine(np.array([0.0, 0.0, 0.0, 0.0]), 0.8)
+    first = arc_map(bent, 0.8)
+    assert arc_map(bent, 0.8) is first
+    for centre, end in ((bent, 0.7), (straight, 0.8), (bent, 0.8)):
+        got, fresh = arc_map(centre, end), _arc_map(centre, end)
+        for name in ("a", "s", "corr"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(fresh, name))
+    assert arc_map(straight, 0.8).s[-1] < first.s[-1]  # the bent line is the longer
+    assert arc_map(bent, 0.7).a[-1] < first.a[-1]
