@@ -201,21 +201,18 @@ def _scan(
     m = 2 * max(g.reach for g in geos) + 1
     # The samples (position along the line, line) as int16: 8-bit values, their
     # negations and steps are exact, at a quarter of the float traffic; every estimator
-    # converts only its small window.
-    h_img = image.shape[0] if columns else image.shape[1]
-    along = np.arange(m)[:, None] + top[None, :]
-    if len(geos) > 1:
-        along = np.minimum(along, h_img - 1)
-    flat = image.ravel()
-    if columns:
-        prof = flat[along * image.shape[1] + lines[None, :]].astype(np.int16)
-    else:
-        prof = flat[lines[None, :] * image.shape[1] + along].astype(np.int16)
-    # Both sides at once: the falling edge of a profile between levels lo and hi is the
-    # rising edge of the negated profile between -hi and -lo, so lines n.. hold -prof
-    # and every estimator below sees rising edges only (one call per stage, not two).
-    prof2 = np.concatenate([prof, -prof], axis=1)
-    diff2 = np.diff(prof2, axis=0)  # step k sits at k + 0.5
+    # converts only its small window. Both sides at once: the falling edge of a profile
+    # between levels lo and hi is the rising edge of the negated profile between -hi and
+    # -lo, so lines n.. hold -prof and every estimator below sees rising edges only (one
+    # call per stage, not two). ``max_window`` rows of zeros above and below (never
+    # read as samples) let every edge window be cut from one strided view.
+    pad = max_window
+    buf = np.zeros((m + 2 * pad, 2 * n), dtype=np.int16)
+    prof2 = buf[pad : pad + m]  # whole rows: C-contiguous
+    prof = prof2[:, :n]
+    prof[...] = _line_samples(image, columns, lines, top, m)
+    np.negative(prof, out=prof2[:, n:])
+    diff2 = np.subtract(prof2[1:], prof2[:-1])  # step k sits at k + 0.5
     base = top.astype(np.float64)
     mid = yc - base  # centre's position in sample units
     tol = np.maximum(0.35 * half, 2.5)
@@ -228,7 +225,7 @@ def _scan(
         far = prof[-margin_px:]
     else:  # each line's own last samples
         ends = np.repeat([2 * g.reach + 1 for g in geos], sizes)
-        far, _ = _gather(prof, ends[None, :] - np.arange(margin_px, 0, -1)[:, None])
+        far = _take_rows(prof2, ends - margin_px, margin_px, np.arange(n))
     near = prof[:margin_px]
     level_out = _median(np.concatenate([near, far]))
     contrast = np.maximum(level_in - level_out, 1e-6)
@@ -259,7 +256,7 @@ def _scan(
         tilt = _pooled_tilt(near, far, level_out, bounds, spans) * half
         fa, fb = 1.0 - tilt, 1.0 + tilt  # the light at the edges, relative to the middle
         lo2, hi2 = np.concatenate([lo * fa, -(hi * fb)]), np.concatenate([hi * fa, -(lo * fb)])
-    cen, step, area = _window_edges(prof2, peak, win, lo2, hi2)
+    cen, step, area = _window_edges(buf, pad, peak, win, lo2, hi2)
     if lo2 is not None and hi2 is not None:
         cen = np.where(np.isfinite(area), area, cen)
         if estimator == "erf":
@@ -293,18 +290,50 @@ def _clip(x: Any, lo: Any, hi: Any) -> Any:
     return np.minimum(np.maximum(x, lo), hi)
 
 
-def _gather(
-    samples: NDArray[Any], idx: NDArray[np.intp], cols: NDArray[np.intp] | None = None
-) -> tuple[NDArray[Any], NDArray[np.bool_]]:
-    """``samples[idx[w, i], cols[i]]`` (``cols`` default: every line) for a (window,
-    lines) index array (clipped to the samples) and where the index was inside them
-    (flat indices: cheaper than 2-D fancy indexing). ``samples`` must be C-contiguous."""
+def _line_samples(
+    image: NDArray[np.uint8], columns: bool, lines: NDArray[np.intp], top: NDArray[np.intp], m: int
+) -> NDArray[np.uint8]:
+    """The ``m`` samples of each scan line from ``top`` on, (sample, line): pixel columns
+    ``lines`` (``columns``) or rows, positions past the image's edge taken at its last
+    pixel. Cut from a strided view of the flat image (one line's samples a fixed stride
+    apart), not gathered by an index array per sample. ``m`` is at most the lines'
+    length (every strip's own lines fit the image)."""
+    h_img, w = image.shape
+    if not columns:
+        h_img = w
+    flat = np.ascontiguousarray(image).ravel()
+    along, across = (w, 1) if columns else (1, w)
+    start = np.minimum(top, h_img - m) * along + lines * across
+    view = np.lib.stride_tricks.as_strided(
+        flat,
+        shape=(m, flat.size - (m - 1) * along),
+        strides=(along * flat.itemsize, flat.itemsize),
+        writeable=False,
+    )
+    out = view[:, start]
+    # Lines of a narrower strip run past the image by up to the reach's difference.
+    over = np.flatnonzero(top > h_img - m)
+    if len(over):
+        idx = np.minimum(np.arange(m)[:, None] + top[over][None, :], h_img - 1)
+        out[:, over] = flat[idx * along + (lines[over] * across)[None, :]]
+    return np.asarray(out)
+
+
+def _take_rows(
+    samples: NDArray[Any], start: NDArray[np.intp], count: int, cols: NDArray[np.intp]
+) -> NDArray[Any]:
+    """``samples[start[i] + w, cols[i]]`` for ``w < count``: (count, len(cols)), from a
+    strided view (no index array per sample). ``samples`` C-contiguous (m, n); every
+    ``0 <= start <= m - count``."""
     m, n = samples.shape
-    valid = (idx >= 0) & (idx < m)
-    inside = bool(valid.all())
-    col = np.arange(n) if cols is None else cols
-    flat = (idx if inside else _clip(idx, 0, m - 1)) * n + col[None, :]
-    return np.ravel(samples)[flat], valid
+    flat = samples.ravel()
+    view = np.lib.stride_tricks.as_strided(
+        flat,
+        shape=(count, (m - count + 1) * n),
+        strides=(n * flat.itemsize, flat.itemsize),
+        writeable=False,
+    )
+    return np.asarray(view[:, start * n + cols])
 
 
 def _argmax_near(
@@ -313,15 +342,18 @@ def _argmax_near(
     """Per line (column of ``diff``), the index k of the largest step ``diff[k]`` (at
     k + 0.5) within ``tol`` of ``centre`` (the first, on a tie): only that window is
     read, not the whole line."""
-    m = diff.shape[0]
+    m, n = diff.shape
     k0 = _clip(np.ceil(centre - tol - 0.5).astype(np.intp), 0, m - 1)
     k1 = _clip(np.floor(centre + tol - 0.5).astype(np.intp), 0, m - 1)
     span = max(int(np.max(k1 - k0)) + 1, 1) if len(k0) else 1
-    idx = np.arange(span)[:, None] + k0[None, :]
-    # In range by construction (k0 >= 0): a plain flat gather.
-    flat = np.minimum(idx, m - 1) * diff.shape[1] + np.arange(diff.shape[1])[None, :]
-    vals = np.where(idx <= k1[None, :], np.ravel(diff)[flat], _INT16_MIN)
-    return np.asarray(k0 + np.argmax(vals, axis=0), dtype=np.intp)
+    # Each line's window starts at k0, or earlier where it would run past the end.
+    start = np.minimum(k0, m - span)
+    vals = _take_rows(diff, start, span, np.arange(n))
+    pos = np.arange(span)[:, None]
+    np.putmask(vals, pos > (k1 - start)[None, :], _INT16_MIN)
+    if bool((start < k0).any()):
+        np.putmask(vals, pos < (k0 - start)[None, :], _INT16_MIN)
+    return np.asarray(start + np.argmax(vals, axis=0), dtype=np.intp)
 
 
 def _inner_mean(
@@ -391,15 +423,16 @@ def _median(values: NDArray[np.int16]) -> NDArray[np.float64]:
 
 
 def _window_edges(
-    prof: NDArray[np.int16],
+    padded: NDArray[np.int16],
+    pad: int,
     peak: NDArray[np.intp],
     half: NDArray[np.intp],
     lo: NDArray[np.float64] | None,
     hi: NDArray[np.float64] | None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Rising edges about the steepest step ``peak`` (step k between samples k and k+1,
-    at k + 0.5) of each line (column) of ``prof``, from one window of samples
-    peak-half .. peak+half+1:
+    at k + 0.5) of each line (column) of the profiles ``padded[pad:-pad]``, from one
+    window of samples peak-half .. peak+half+1 (``half`` at most ``pad``):
 
     - the first moment of the positive steps within ``half`` of the peak, and their sum
       (the edge's contrast), as :func:`vision.sampling.edge_moment`;
@@ -412,11 +445,12 @@ def _window_edges(
     line's window 18 samples instead of 8."""
     small = half <= 3
     if small.all() or not small.any():
-        return _window_edges_group(prof, None, peak, half, lo, hi)
+        return _window_edges_group(padded, pad, np.arange(len(peak)), peak, half, lo, hi)
     out = (np.empty(len(half)), np.empty(len(half)), np.empty(len(half)))
     for sel in (np.flatnonzero(small), np.flatnonzero(~small)):
         part = _window_edges_group(
-            prof,
+            padded,
+            pad,
             sel,
             peak[sel],
             half[sel],
@@ -429,24 +463,29 @@ def _window_edges(
 
 
 def _window_edges_group(
-    prof: NDArray[np.int16],
-    cols: NDArray[np.intp] | None,
+    padded: NDArray[np.int16],
+    pad: int,
+    cols: NDArray[np.intp],
     peak: NDArray[np.intp],
     half: NDArray[np.intp],
     lo: NDArray[np.float64] | None,
     hi: NDArray[np.float64] | None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`_window_edges` for the lines ``cols`` (None: all)."""
+    """:func:`_window_edges` for the lines ``cols``."""
     n = len(peak)
+    m = padded.shape[0] - 2 * pad
     hmax = int(np.max(half)) if n else 0
     offs = np.arange(-hmax, hmax + 2)
-    idx = peak[None, :] + offs[:, None]
-    v, inrange = _gather(prof, idx, cols)
-    every = bool(inrange.all())
+    # The window's samples; those past the line's ends (the zero padding) are never
+    # counted: their steps are dropped and the area is NaN.
+    v = _take_rows(padded, peak + (pad - hmax), 2 * hmax + 2, cols)
+    every = not n or (int(peak.min()) >= hmax and int(peak.max()) + hmax + 1 < m)
     # The steps of the window; step o (between samples o and o + 1 about the peak).
-    d = np.diff(v, axis=0)
+    d = np.subtract(v[1:], v[:-1])
     ok_step = np.abs(offs[:-1])[:, None] <= half[None, :]
     if not every:
+        pos = peak[None, :] + offs[:, None]
+        inrange = (pos >= 0) & (pos < m)
         ok_step &= inrange[:-1] & inrange[1:]
     ok_step &= d > 0
     d = np.where(ok_step, d, 0)
@@ -521,13 +560,16 @@ def _erf_fit(
     # estimate runs off on lines that cross something else): NaN, like no start. Those
     # lines sit at the profile's middle, so every window is whole.
     m = np.shape(prof)[0]
+    if m < 2 * half + 1:  # no window fits
+        return np.full(len(c), np.nan)
     centre: NDArray[np.float64] = np.asarray(np.round(c), dtype=np.float64)
     ok &= (centre >= half) & (centre <= m - 1 - half)
     centre = np.asarray(np.where(ok, centre, float(m // 2)), dtype=np.float64)
     c = np.where(ok, c, centre)
-    idx = np.arange(-half, half + 1)[:, None] + centre.astype(np.intp)[None, :]
-    # (Every line with a start has its whole window; the rest are clipped and dropped.)
-    samples, _ = _gather(np.ascontiguousarray(prof), idx)
+    # (Every window is whole: a line without a start has the profile's middle.)
+    samples = _take_rows(
+        np.ascontiguousarray(prof), centre.astype(np.intp) - half, 2 * half + 1, np.arange(len(c))
+    )
     # The model is evaluated in single precision (twice the numpy throughput; numpy's
     # double exp is even scalar code on CPUs without AVX-512), about the window's
     # centre: the residuals are then good to 1e-5 DN and a step to 1e-7 px, far below
