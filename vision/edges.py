@@ -25,6 +25,8 @@ from numpy.typing import NDArray
 from vision.sampling import median
 
 _INT16_MIN = np.int16(np.iinfo(np.int16).min)
+#: The profiles' padding above their first sample (and its negation below the last).
+_PAD_LEVEL = 1000
 
 
 def edge_moment(
@@ -204,10 +206,12 @@ def _scan(
     # converts only its small window. Both sides at once: the falling edge of a profile
     # between levels lo and hi is the rising edge of the negated profile between -hi and
     # -lo, so lines n.. hold -prof and every estimator below sees rising edges only (one
-    # call per stage, not two). ``max_window`` rows of zeros above and below (never
-    # read as samples) let every edge window be cut from one strided view.
+    # call per stage, not two). ``max_window`` rows of padding above and below (never
+    # counted as samples) let every edge window be cut from one strided view.
     pad = max_window
-    buf = np.zeros((m + 2 * pad, 2 * n), dtype=np.int16)
+    buf = np.empty((m + 2 * pad, 2 * n), dtype=np.int16)
+    buf[:pad] = _PAD_LEVEL  # stepping down into the line and out of it (+-255 at most)
+    buf[pad + m :] = -_PAD_LEVEL
     prof2 = buf[pad : pad + m]  # whole rows: C-contiguous
     prof = prof2[:, :n]
     prof[...] = _line_samples(image, columns, lines, top, m)
@@ -327,7 +331,9 @@ def _take_rows(
         strides=(n * flat.itemsize, flat.itemsize),
         writeable=False,
     )
-    return np.asarray(view[:, start * n + cols])
+    # (The fancy index lays its result out line by line: made row-major again, every
+    # operation on the window after it runs several times faster.)
+    return np.ascontiguousarray(view[:, start * n + cols])
 
 
 def _argmax_near(
@@ -523,35 +529,35 @@ def _window_edges_group(
     n = len(peak)
     m = padded.shape[0] - 2 * pad
     hmax = int(np.max(half)) if n else 0
-    offs = np.arange(-hmax, hmax + 2)
-    # The window's samples; those past the line's ends (the zero padding) are never
-    # counted: their steps are dropped and the area is NaN.
+    # The window's samples, offsets -hmax .. hmax + 1 about the peak. Past the line's
+    # ends they are the padding, which steps down into the line and out of it, so that
+    # only steps between the line's own samples can be positive.
     v = _take_rows(padded, peak + (pad - hmax), 2 * hmax + 2, cols)
-    every = not n or (int(peak.min()) >= hmax and int(peak.max()) + hmax + 1 < m)
-    # The steps of the window; step o (between samples o and o + 1 about the peak).
-    d = np.subtract(v[1:], v[:-1])
-    ok_step = np.abs(offs[:-1])[:, None] <= half[None, :]
-    if not every:
-        pos = peak[None, :] + offs[:, None]
-        inrange = (pos >= 0) & (pos < m)
-        ok_step &= inrange[:-1] & inrange[1:]
-    ok_step &= d > 0
-    d = np.where(ok_step, d, 0)
-    total = d.sum(axis=0, dtype=np.float64)
-    # Sums over the window as few whole-array operations as can be (each one's cost is
-    # mostly its call): the moment about the peak as one product with the offsets.
+    # Sums over the window (integers, exact in any order): each line's window
+    # (|offset| <= half) is the widest one less the rings |offset| = r > half, a few
+    # operations on one row each, not a mask over every line's widest window.
+    d = np.subtract(v[1:], v[:-1])  # the steps, offsets -hmax .. hmax
+    np.maximum(d, 0, out=d)  # only rising steps count
+    total = d.sum(axis=0, dtype=np.int32)
+    moment = (d * np.arange(-hmax, hmax + 1, dtype=np.int16)[:, None]).sum(axis=0, dtype=np.int32)
+    total_v = v.sum(axis=0, dtype=np.int32)
+    for r in range(int(np.min(half)) + 1 if n else 1, hmax + 1):
+        out = half < r
+        below, above = d[hmax - r], d[hmax + r]
+        total -= np.where(out, below + above, 0).astype(np.int32)
+        moment -= np.where(out, r * (above - below), 0).astype(np.int32)
+        total_v -= np.where(out, v[hmax - r] + v[hmax + r + 1], 0).astype(np.int32)
+    step = total.astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        centre = peak + 0.5 + (offs[:-1].astype(np.float64) @ d) / total
+        centre = peak + 0.5 + moment / step
     if lo is None or hi is None:
-        return centre, total, np.full(n, np.nan)
-    # The area of the window's samples above lo, in units of hi - lo: its 2 half + 2
-    # samples summed as integers.
-    inwin = (offs[:, None] >= -half[None, :]) & (offs[:, None] <= half[None, :] + 1)
-    ok = np.ones(n, dtype=bool) if every else np.all(inrange | ~inwin, axis=0)
-    total_v = np.where(inwin, v, 0).sum(axis=0, dtype=np.float64)
+        return centre, step, np.full(n, np.nan)
+    # The area of the window's 2 half + 2 samples above lo, in units of hi - lo; NaN
+    # where the window leaves the line.
+    ok = (peak >= half) & (peak + half + 1 < m) & (hi - lo > 1.0)
     frac = (total_v - (2 * half + 2) * lo) / np.maximum(hi - lo, 1e-6)
     area = (peak + half + 1).astype(np.float64) + 0.5 - frac
-    return centre, total, np.where(ok & (hi - lo > 1.0), area, np.nan)
+    return centre, step, np.where(ok, area, np.nan)
 
 
 def erf_edge(
@@ -732,6 +738,8 @@ _AS_P = 0.3275911 / math.sqrt(2.0)  # for x = |u| / sqrt(2)
 _AS_A = (0.254829592, -0.284496736, 1.421413741, -1.453152027, 1.061405429)
 _AS_A32 = tuple(np.float32(a) for a in _AS_A)
 _AS_P32 = np.float32(_AS_P)
+_SIGN = np.int32(np.iinfo(np.int32).min)  # a float32's sign bit
+_MAGNITUDE = np.int32(np.iinfo(np.int32).max)  # the rest
 
 
 def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray[np.float32]:
@@ -754,6 +762,10 @@ def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray
     p *= g
     p *= half  # Phi(-|u|)
     np.subtract(half, p, out=p)
-    np.copysign(p, u, out=p)  # Phi(u) - 1/2
+    # Phi(u) - 1/2 = copysign(p, u), by the bits: np.copysign is scalar code, three
+    # times the cost of the two masks (the same result for every input).
+    bits = p.view(np.int32)
+    bits &= _MAGNITUDE
+    bits |= u.view(np.int32) & _SIGN
     p += half
     return p
