@@ -339,9 +339,9 @@ def _take_rows(
 def _argmax_near(
     diff: NDArray[np.int16], centre: NDArray[np.float64], tol: NDArray[np.float64]
 ) -> NDArray[np.intp]:
-    """Per line (column of ``diff``), the index k of the largest step ``diff[k]`` (at
-    k + 0.5) within ``tol`` of ``centre`` (the first, on a tie): only that window is
-    read, not the whole line."""
+    """Per line (column of ``diff``: steps of 8-bit samples, |step| < 512), the index k
+    of the largest step ``diff[k]`` (at k + 0.5) within ``tol`` of ``centre`` (the
+    first, on a tie): only that window is read, not the whole line."""
     m, n = diff.shape
     k0 = _clip(np.ceil(centre - tol - 0.5).astype(np.intp), 0, m - 1)
     k1 = _clip(np.floor(centre + tol - 0.5).astype(np.intp), 0, m - 1)
@@ -349,11 +349,26 @@ def _argmax_near(
     # Each line's window starts at k0, or earlier where it would run past the end.
     start = np.minimum(k0, m - span)
     vals = _take_rows(diff, start, span, np.arange(n))
-    pos = np.arange(span)[:, None]
+    pos = np.arange(span, dtype=np.int16)[:, None]
+    if span <= _KEY_SPAN:
+        # Each step with its position in the low bits, 63 for the first: the largest
+        # key is the first largest step, by a maximum down the rows (numpy's argmax
+        # down the first axis runs one line at a time, several times slower).
+        np.left_shift(vals, _KEY_BITS, out=vals)
+        vals |= (_KEY_SPAN - 1) - pos
     np.putmask(vals, pos > (k1 - start)[None, :], _INT16_MIN)
     if bool((start < k0).any()):
         np.putmask(vals, pos < (k0 - start)[None, :], _INT16_MIN)
-    return np.asarray(start + np.argmax(vals, axis=0), dtype=np.intp)
+    if span <= _KEY_SPAN:
+        first = (_KEY_SPAN - 1) - (vals.max(axis=0) & (_KEY_SPAN - 1))
+    else:
+        first = np.argmax(vals, axis=0)
+    return np.asarray(start + first, dtype=np.intp)
+
+
+#: Bits of a step's key (:func:`_argmax_near`) that hold its position in the window.
+_KEY_BITS = 6
+_KEY_SPAN = 1 << _KEY_BITS
 
 
 def _inner_mean(
@@ -369,8 +384,12 @@ def _inner_mean(
     # Only the rows some line sums (the strip's middle, not its margins) are accumulated.
     r0 = int(k0.min())
     r1 = max(int(k1.max()), r0)
-    cs = np.zeros((r1 - r0 + 1, n), dtype=np.int32)
-    np.cumsum(prof[r0:r1], axis=0, out=cs[1:])
+    # Row by row: numpy's accumulation down the first axis runs one line at a time,
+    # several times slower.
+    cs = np.empty((r1 - r0 + 1, n), dtype=np.int32)
+    cs[0] = 0
+    for k in range(r1 - r0):
+        np.add(cs[k], prof[r0 + k], out=cs[k + 1])
     rr = np.arange(n)
     total = cs[k1 - r0, rr] - cs[k0 - r0, rr]
     return np.asarray(total / np.maximum(k1 - k0, 1), dtype=np.float64)

@@ -134,6 +134,9 @@ def test_median_is_numpys() -> None:
         assert median(x) == float(np.median(x))
     assert np.isnan(median(np.array([1.0, np.nan, 2.0])))
     assert np.isnan(median(np.zeros(0)))
+    # Infinities are values like any other.
+    for x in ([-np.inf, 0.0, np.inf], [-np.inf, 1.0, 2.0, np.inf], [3.0, np.inf]):
+        assert median(np.array(x)) == float(np.median(x))
 
 
 def test_bilinear_interpolates_and_is_nan_off_the_image() -> None:
