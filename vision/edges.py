@@ -713,7 +713,10 @@ class _ErfWindow:
         self.amp32 = self.amp.astype(np.float32)
 
     def select(self, lines: NDArray[np.intp]) -> _ErfWindow:
-        return _ErfWindow(self.v[:, lines], self.offs, self.amp[lines], self.sign)
+        # Row-major again (the fancy index lays the copy out line by line, and every
+        # step's operations on it would run several times slower).
+        v = np.ascontiguousarray(self.v[:, lines])
+        return _ErfWindow(v, self.offs, self.amp[lines], self.sign)
 
     def step(
         self,
