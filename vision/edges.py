@@ -154,29 +154,36 @@ def _scan_lines(
 ) -> _Lines | None:
     d = centre_px[-1] - centre_px[0]
     columns = bool(abs(d[0]) >= abs(d[1]))
-    pts = centre_px if columns else centre_px[:, ::-1]
-    # pts[:, 0] is now the scan-line index axis, pts[:, 1] the position along the line.
-    order = np.argsort(pts[:, 0])
-    pts = pts[order]
-    hw = np.broadcast_to(np.asarray(half_width_px, dtype=np.float64), (len(pts),))[order]
+    # The scan-line index axis (x) and the position along the lines (y), each as one
+    # contiguous array ordered along x.
+    x, y = (centre_px[:, 0], centre_px[:, 1]) if columns else (centre_px[:, 1], centre_px[:, 0])
+    order = np.argsort(x)
+    x, y = x[order], y[order]
+    hw = np.asarray(half_width_px, dtype=np.float64)
+    if hw.ndim == 0:
+        hw = np.full(len(x), float(hw))
+    else:
+        hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
     # Along-scan positions and scan-line indices (columns: rows and columns of the image).
     h, w = shape if columns else shape[::-1]
-    x0 = int(np.ceil(pts[0, 0]))
-    x1 = int(np.floor(pts[-1, 0]))
+    x0 = int(np.ceil(x[0]))
+    x1 = int(np.floor(x[-1]))
     lines = np.arange(max(x0, 0), min(x1, w - 1) + 1)
     if lines.size < 2:
         return None
-    yc = np.interp(lines, pts[:, 0], pts[:, 1])
+    yc = np.interp(lines, x, y)
     # d yc / d line (lines one apart): central differences, one-sided at the ends (what
     # np.gradient does for unit spacing, without its generic overhead).
     slope = np.zeros_like(yc)
     if lines.size > 2:
         slope[1:-1] = (yc[2:] - yc[:-2]) / 2.0
         slope[0], slope[-1] = yc[1] - yc[0], yc[-1] - yc[-2]
-    half = np.interp(lines, pts[:, 0], hw) * np.sqrt(1.0 + slope**2)
+    half = np.interp(lines, x, hw) * np.sqrt(1.0 + slope**2)
     reach = int(np.ceil(np.max(half))) + margin_px + max_window
     top = np.round(yc).astype(np.intp) - reach
     inside = (top >= 0) & (top + 2 * reach < h)
+    if inside.all():
+        return _Lines(columns, lines, yc, half, top, reach)
     if not inside.any():
         return None
     return _Lines(columns, lines[inside], yc[inside], half[inside], top[inside], reach)
@@ -216,12 +223,12 @@ def _scan(
     prof = prof2[:, :n]
     prof[...] = _line_samples(image, columns, lines, top, m)
     np.negative(prof, out=prof2[:, n:])
-    diff2 = np.subtract(prof2[1:], prof2[:-1])  # step k sits at k + 0.5
     base = top.astype(np.float64)
     mid = yc - base  # centre's position in sample units
     tol = np.maximum(0.35 * half, 2.5)
     # The steepest rising step near each expected edge (lines n.. are the falling side).
-    peak = _argmax_near(diff2, np.concatenate([mid - half, mid + half]), np.tile(tol, 2))
+    # (Step k, between samples k and k + 1, sits at k + 0.5.)
+    peak = _argmax_near(prof2, np.concatenate([mid - half, mid + half]), np.tile(tol, 2))
     # Ramp width (px) = contrast / steepest step: motion blur widens it; the moment
     # window grows with it so a blurred edge is still located at its centre.
     level_in = _inner_mean(prof, mid, 0.5 * half)
@@ -233,7 +240,9 @@ def _scan(
     near = prof[:margin_px]
     level_out = _median(np.concatenate([near, far]))
     contrast = np.maximum(level_in - level_out, 1e-6)
-    ramp = np.tile(contrast, 2) / np.maximum(diff2[peak, np.arange(2 * n)], 1e-6)
+    at_peak = peak * (2 * n) + np.arange(2 * n)  # flat indices of the samples before
+    steepest = prof2.ravel()[at_peak + 2 * n] - prof2.ravel()[at_peak]
+    ramp = np.tile(contrast, 2) / np.maximum(steepest, 1e-6)
     win = _clip(np.ceil(0.5 * ramp + 0.5), window, max_window).astype(np.intp)
     lo2 = hi2 = None
     if estimator in ("area", "erf"):
@@ -264,7 +273,7 @@ def _scan(
             ]
             cen = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks=blocks)
     elif estimator == "gauss3":
-        g = edge_gauss3(diff2.T, peak)
+        g = edge_gauss3(np.subtract(prof2[1:], prof2[:-1]).T, peak)
         cen = np.where(np.isfinite(g), g, cen)
     ca, cb = cen[:n], cen[n:]
     side_a = np.column_stack([lines.astype(np.float64), base + ca])
@@ -337,18 +346,20 @@ def _take_rows(
 
 
 def _argmax_near(
-    diff: NDArray[np.int16], centre: NDArray[np.float64], tol: NDArray[np.float64]
+    samples: NDArray[np.int16], centre: NDArray[np.float64], tol: NDArray[np.float64]
 ) -> NDArray[np.intp]:
-    """Per line (column of ``diff``: steps of 8-bit samples, |step| < 512), the index k
-    of the largest step ``diff[k]`` (at k + 0.5) within ``tol`` of ``centre`` (the
-    first, on a tie): only that window is read, not the whole line."""
-    m, n = diff.shape
+    """Per line (column of ``samples``, C-contiguous: 8-bit values or their negations),
+    the index k of the largest step ``samples[k + 1] - samples[k]`` (at k + 0.5) within
+    ``tol`` of ``centre`` (the first, on a tie): only that window's steps are taken,
+    not the whole line's."""
+    m, n = samples.shape[0] - 1, samples.shape[1]  # m steps a line
     k0 = _clip(np.ceil(centre - tol - 0.5).astype(np.intp), 0, m - 1)
     k1 = _clip(np.floor(centre + tol - 0.5).astype(np.intp), 0, m - 1)
     span = max(int(np.max(k1 - k0)) + 1, 1) if len(k0) else 1
     # Each line's window starts at k0, or earlier where it would run past the end.
     start = np.minimum(k0, m - span)
-    vals = _take_rows(diff, start, span, np.arange(n))
+    window = _take_rows(samples, start, span + 1, np.arange(n))
+    vals = np.subtract(window[1:], window[:-1])
     pos = np.arange(span, dtype=np.int16)[:, None]
     if span <= _KEY_SPAN:
         # Each step with its position in the low bits, 63 for the first: the largest
@@ -513,25 +524,27 @@ def _window_edges(
       same area between them (exact for any blur once the window spans the ramp; less
       noisy than the moment of the steps), NaN where the window leaves the line.
 
-    The lines are taken in two groups, windows up to 3 and wider: one array spans the
+    The lines are taken in two passes, windows up to 3 and wider: one array spans the
     widest window, and a few lines across blur or clutter would otherwise make every
     line's window 18 samples instead of 8."""
-    small = half <= 3
-    if small.all() or not small.any():
-        return _window_edges_group(padded, pad, np.arange(len(peak)), peak, half, lo, hi)
-    out = (np.empty(len(half)), np.empty(len(half)), np.empty(len(half)))
-    for sel in (np.flatnonzero(small), np.flatnonzero(~small)):
-        part = _window_edges_group(
-            padded,
-            pad,
-            sel,
-            peak[sel],
-            half[sel],
-            None if lo is None else lo[sel],
-            None if hi is None else hi[sel],
-        )
-        for o, p in zip(out, part, strict=True):
-            o[sel] = p
+    every = np.arange(len(peak))
+    wide = np.flatnonzero(half > 3)
+    if len(wide) in (0, len(half)):
+        return _window_edges_group(padded, pad, every, peak, half, lo, hi)
+    # Every line with its window cut to 3, then the few wide ones again (each line's
+    # own window is exact in either pass: see _window_edges_group).
+    out = _window_edges_group(padded, pad, every, peak, np.minimum(half, 3), lo, hi)
+    part = _window_edges_group(
+        padded,
+        pad,
+        wide,
+        peak[wide],
+        half[wide],
+        None if lo is None else lo[wide],
+        None if hi is None else hi[wide],
+    )
+    for o, p in zip(out, part, strict=True):
+        o[wide] = p
     return out
 
 
