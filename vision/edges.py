@@ -276,18 +276,22 @@ def _scan(
         g = edge_gauss3(np.subtract(prof2[1:], prof2[:-1]).T, peak)
         cen = np.where(np.isfinite(g), g, cen)
     ca, cb = cen[:n], cen[n:]
-    side_a = np.column_stack([lines.astype(np.float64), base + ca])
-    side_b = np.column_stack([lines.astype(np.float64), base + cb])
-    if not columns:
-        side_a = side_a[:, ::-1]
-        side_b = side_b[:, ::-1]
+    # (x, y): the line index and the position along it, whichever axis each is.
+    line_axis, along_axis = (0, 1) if columns else (1, 0)
+    side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
+    side_a[:, line_axis] = side_b[:, line_axis] = lines
+    np.add(base, ca, out=side_a[:, along_axis])
+    np.add(base, cb, out=side_b[:, along_axis])
     contrast = np.minimum(step[:n], step[n:])
     spread = np.maximum(ramp[:n], ramp[n:])
     good = np.isfinite(ca) & np.isfinite(cb) & (contrast > 0)
     out = []
     for a, b in itertools.pairwise(bounds):
         k = good[a:b]
-        out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
+        if k.all():  # (the common case: slices, no copies)
+            out.append(StripEdges(side_a[a:b], side_b[a:b], contrast[a:b], spread[a:b]))
+        else:
+            out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
     return out
 
 
