@@ -25,6 +25,8 @@ from numpy.typing import NDArray
 from vision.sampling import median
 
 _INT16_MIN = np.int16(np.iinfo(np.int16).min)
+#: The profiles' padding above their first sample (and its negation below the last).
+_PAD_LEVEL = 1000
 
 
 def edge_moment(
@@ -152,29 +154,36 @@ def _scan_lines(
 ) -> _Lines | None:
     d = centre_px[-1] - centre_px[0]
     columns = bool(abs(d[0]) >= abs(d[1]))
-    pts = centre_px if columns else centre_px[:, ::-1]
-    # pts[:, 0] is now the scan-line index axis, pts[:, 1] the position along the line.
-    order = np.argsort(pts[:, 0])
-    pts = pts[order]
-    hw = np.broadcast_to(np.asarray(half_width_px, dtype=np.float64), (len(pts),))[order]
+    # The scan-line index axis (x) and the position along the lines (y), each as one
+    # contiguous array ordered along x.
+    x, y = (centre_px[:, 0], centre_px[:, 1]) if columns else (centre_px[:, 1], centre_px[:, 0])
+    order = np.argsort(x)
+    x, y = x[order], y[order]
+    hw = np.asarray(half_width_px, dtype=np.float64)
+    if hw.ndim == 0:
+        hw = np.full(len(x), float(hw))
+    else:
+        hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
     # Along-scan positions and scan-line indices (columns: rows and columns of the image).
     h, w = shape if columns else shape[::-1]
-    x0 = int(np.ceil(pts[0, 0]))
-    x1 = int(np.floor(pts[-1, 0]))
+    x0 = int(np.ceil(x[0]))
+    x1 = int(np.floor(x[-1]))
     lines = np.arange(max(x0, 0), min(x1, w - 1) + 1)
     if lines.size < 2:
         return None
-    yc = np.interp(lines, pts[:, 0], pts[:, 1])
+    yc = np.interp(lines, x, y)
     # d yc / d line (lines one apart): central differences, one-sided at the ends (what
     # np.gradient does for unit spacing, without its generic overhead).
     slope = np.zeros_like(yc)
     if lines.size > 2:
         slope[1:-1] = (yc[2:] - yc[:-2]) / 2.0
         slope[0], slope[-1] = yc[1] - yc[0], yc[-1] - yc[-2]
-    half = np.interp(lines, pts[:, 0], hw) * np.sqrt(1.0 + slope**2)
+    half = np.interp(lines, x, hw) * np.sqrt(1.0 + slope**2)
     reach = int(np.ceil(np.max(half))) + margin_px + max_window
     top = np.round(yc).astype(np.intp) - reach
     inside = (top >= 0) & (top + 2 * reach < h)
+    if inside.all():
+        return _Lines(columns, lines, yc, half, top, reach)
     if not inside.any():
         return None
     return _Lines(columns, lines[inside], yc[inside], half[inside], top[inside], reach)
@@ -201,26 +210,25 @@ def _scan(
     m = 2 * max(g.reach for g in geos) + 1
     # The samples (position along the line, line) as int16: 8-bit values, their
     # negations and steps are exact, at a quarter of the float traffic; every estimator
-    # converts only its small window.
-    h_img = image.shape[0] if columns else image.shape[1]
-    along = np.arange(m)[:, None] + top[None, :]
-    if len(geos) > 1:
-        along = np.minimum(along, h_img - 1)
-    flat = image.ravel()
-    if columns:
-        prof = flat[along * image.shape[1] + lines[None, :]].astype(np.int16)
-    else:
-        prof = flat[lines[None, :] * image.shape[1] + along].astype(np.int16)
-    # Both sides at once: the falling edge of a profile between levels lo and hi is the
-    # rising edge of the negated profile between -hi and -lo, so lines n.. hold -prof
-    # and every estimator below sees rising edges only (one call per stage, not two).
-    prof2 = np.concatenate([prof, -prof], axis=1)
-    diff2 = np.diff(prof2, axis=0)  # step k sits at k + 0.5
+    # converts only its small window. Both sides at once: the falling edge of a profile
+    # between levels lo and hi is the rising edge of the negated profile between -hi and
+    # -lo, so lines n.. hold -prof and every estimator below sees rising edges only (one
+    # call per stage, not two). ``max_window`` rows of padding above and below (never
+    # counted as samples) let every edge window be cut from one strided view.
+    pad = max_window
+    buf = np.empty((m + 2 * pad, 2 * n), dtype=np.int16)
+    buf[:pad] = _PAD_LEVEL  # stepping down into the line and out of it (+-255 at most)
+    buf[pad + m :] = -_PAD_LEVEL
+    prof2 = buf[pad : pad + m]  # whole rows: C-contiguous
+    prof = prof2[:, :n]
+    prof[...] = _line_samples(image, columns, lines, top, m)
+    np.negative(prof, out=prof2[:, n:])
     base = top.astype(np.float64)
     mid = yc - base  # centre's position in sample units
     tol = np.maximum(0.35 * half, 2.5)
     # The steepest rising step near each expected edge (lines n.. are the falling side).
-    peak = _argmax_near(diff2, np.concatenate([mid - half, mid + half]), np.tile(tol, 2))
+    # (Step k, between samples k and k + 1, sits at k + 0.5.)
+    peak = _argmax_near(prof2, np.concatenate([mid - half, mid + half]), np.tile(tol, 2))
     # Ramp width (px) = contrast / steepest step: motion blur widens it; the moment
     # window grows with it so a blurred edge is still located at its centre.
     level_in = _inner_mean(prof, mid, 0.5 * half)
@@ -228,22 +236,18 @@ def _scan(
         far = prof[-margin_px:]
     else:  # each line's own last samples
         ends = np.repeat([2 * g.reach + 1 for g in geos], sizes)
-        far, _ = _gather(prof, ends[None, :] - np.arange(margin_px, 0, -1)[:, None])
+        far = _take_rows(prof2, ends - margin_px, margin_px, np.arange(n))
     near = prof[:margin_px]
     level_out = _median(np.concatenate([near, far]))
     contrast = np.maximum(level_in - level_out, 1e-6)
-    ramp = np.tile(contrast, 2) / np.maximum(diff2[peak, np.arange(2 * n)], 1e-6)
+    at_peak = peak * (2 * n) + np.arange(2 * n)  # flat indices of the samples before
+    steepest = prof2.ravel()[at_peak + 2 * n] - prof2.ravel()[at_peak]
+    ramp = np.tile(contrast, 2) / np.maximum(steepest, 1e-6)
     win = _clip(np.ceil(0.5 * ramp + 0.5), window, max_window).astype(np.intp)
     lo2 = hi2 = None
     if estimator in ("area", "erf"):
-        from scipy.ndimage import median_filter
-
         # The plateau levels smoothed along each strip (not across strips).
-        lo, hi = np.empty(n), np.empty(n)
-        for a, b in itertools.pairwise(bounds):
-            k = min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1
-            lo[a:b] = median_filter(level_out[a:b], size=k, mode="nearest")
-            hi[a:b] = median_filter(level_in[a:b], size=k, mode="nearest")
+        lo, hi = _smoothed_levels(level_out, level_in, bounds)
         # The levels at each edge, not at the line's middle. Under uneven light the
         # plateaus tilt, and levels taken at the middle put both edges of a strip off
         # the same way, toward the light (by about the mid-level's change over a half
@@ -259,7 +263,7 @@ def _scan(
         tilt = _pooled_tilt(near, far, level_out, bounds, spans) * half
         fa, fb = 1.0 - tilt, 1.0 + tilt  # the light at the edges, relative to the middle
         lo2, hi2 = np.concatenate([lo * fa, -(hi * fb)]), np.concatenate([hi * fa, -(lo * fb)])
-    cen, step, area = _window_edges(prof2, peak, win, lo2, hi2)
+    cen, step, area = _window_edges(buf, pad, peak, win, lo2, hi2)
     if lo2 is not None and hi2 is not None:
         cen = np.where(np.isfinite(area), area, cen)
         if estimator == "erf":
@@ -269,21 +273,25 @@ def _scan(
             ]
             cen = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks=blocks)
     elif estimator == "gauss3":
-        g = edge_gauss3(diff2.T, peak)
+        g = edge_gauss3(np.subtract(prof2[1:], prof2[:-1]).T, peak)
         cen = np.where(np.isfinite(g), g, cen)
     ca, cb = cen[:n], cen[n:]
-    side_a = np.column_stack([lines.astype(np.float64), base + ca])
-    side_b = np.column_stack([lines.astype(np.float64), base + cb])
-    if not columns:
-        side_a = side_a[:, ::-1]
-        side_b = side_b[:, ::-1]
+    # (x, y): the line index and the position along it, whichever axis each is.
+    line_axis, along_axis = (0, 1) if columns else (1, 0)
+    side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
+    side_a[:, line_axis] = side_b[:, line_axis] = lines
+    np.add(base, ca, out=side_a[:, along_axis])
+    np.add(base, cb, out=side_b[:, along_axis])
     contrast = np.minimum(step[:n], step[n:])
     spread = np.maximum(ramp[:n], ramp[n:])
     good = np.isfinite(ca) & np.isfinite(cb) & (contrast > 0)
     out = []
     for a, b in itertools.pairwise(bounds):
         k = good[a:b]
-        out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
+        if k.all():  # (the common case: slices, no copies)
+            out.append(StripEdges(side_a[a:b], side_b[a:b], contrast[a:b], spread[a:b]))
+        else:
+            out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
     return out
 
 
@@ -293,35 +301,93 @@ def _clip(x: Any, lo: Any, hi: Any) -> Any:
     return np.minimum(np.maximum(x, lo), hi)
 
 
-def _gather(
-    samples: NDArray[Any], idx: NDArray[np.intp], cols: NDArray[np.intp] | None = None
-) -> tuple[NDArray[Any], NDArray[np.bool_]]:
-    """``samples[idx[w, i], cols[i]]`` (``cols`` default: every line) for a (window,
-    lines) index array (clipped to the samples) and where the index was inside them
-    (flat indices: cheaper than 2-D fancy indexing). ``samples`` must be C-contiguous."""
+def _line_samples(
+    image: NDArray[np.uint8], columns: bool, lines: NDArray[np.intp], top: NDArray[np.intp], m: int
+) -> NDArray[np.uint8]:
+    """The ``m`` samples of each scan line from ``top`` on, (sample, line): pixel columns
+    ``lines`` (``columns``) or rows, positions past the image's edge taken at its last
+    pixel. Cut from a strided view of the flat image (one line's samples a fixed stride
+    apart), not gathered by an index array per sample. ``m`` is at most the lines'
+    length (every strip's own lines fit the image)."""
+    h_img, w = image.shape
+    if not columns:
+        h_img = w
+    flat = np.ascontiguousarray(image).ravel()
+    along, across = (w, 1) if columns else (1, w)
+    start = np.minimum(top, h_img - m) * along + lines * across
+    view = _strided(flat, (m, flat.size - (m - 1) * along), (along, 1))
+    out = view[:, start]
+    # Lines of a narrower strip run past the image by up to the reach's difference.
+    if len(top) and int(top.max()) > h_img - m:
+        over = np.flatnonzero(top > h_img - m)
+        idx = np.minimum(np.arange(m)[:, None] + top[over][None, :], h_img - 1)
+        out[:, over] = flat[idx * along + (lines[over] * across)[None, :]]
+    return np.asarray(out)
+
+
+def _strided(flat: NDArray[Any], shape: tuple[int, int], steps: tuple[int, int]) -> NDArray[Any]:
+    """A read-only 2-D view of the contiguous 1-D ``flat`` with ``steps`` elements
+    between rows and columns (numpy checks it stays inside ``flat``): what
+    ``as_strided`` makes, at a quarter of its overhead."""
+    view: NDArray[Any] = np.ndarray(
+        shape,
+        dtype=flat.dtype,
+        buffer=flat,
+        strides=(steps[0] * flat.itemsize, flat.itemsize * steps[1]),
+    )
+    view.flags.writeable = False
+    return view
+
+
+def _take_rows(
+    samples: NDArray[Any], start: NDArray[np.intp], count: int, cols: NDArray[np.intp]
+) -> NDArray[Any]:
+    """``samples[start[i] + w, cols[i]]`` for ``w < count``: (count, len(cols)), from a
+    strided view (no index array per sample). ``samples`` C-contiguous (m, n); every
+    ``0 <= start <= m - count``."""
     m, n = samples.shape
-    valid = (idx >= 0) & (idx < m)
-    inside = bool(valid.all())
-    col = np.arange(n) if cols is None else cols
-    flat = (idx if inside else _clip(idx, 0, m - 1)) * n + col[None, :]
-    return np.ravel(samples)[flat], valid
+    flat = samples.ravel()
+    view = _strided(flat, (count, (m - count + 1) * n), (n, 1))
+    # (The fancy index lays its result out line by line: made row-major again, every
+    # operation on the window after it runs several times faster.)
+    return np.ascontiguousarray(view[:, start * n + cols])
 
 
 def _argmax_near(
-    diff: NDArray[np.int16], centre: NDArray[np.float64], tol: NDArray[np.float64]
+    samples: NDArray[np.int16], centre: NDArray[np.float64], tol: NDArray[np.float64]
 ) -> NDArray[np.intp]:
-    """Per line (column of ``diff``), the index k of the largest step ``diff[k]`` (at
-    k + 0.5) within ``tol`` of ``centre`` (the first, on a tie): only that window is
-    read, not the whole line."""
-    m = diff.shape[0]
+    """Per line (column of ``samples``, C-contiguous: 8-bit values or their negations),
+    the index k of the largest step ``samples[k + 1] - samples[k]`` (at k + 0.5) within
+    ``tol`` of ``centre`` (the first, on a tie): only that window's steps are taken,
+    not the whole line's."""
+    m, n = samples.shape[0] - 1, samples.shape[1]  # m steps a line
     k0 = _clip(np.ceil(centre - tol - 0.5).astype(np.intp), 0, m - 1)
     k1 = _clip(np.floor(centre + tol - 0.5).astype(np.intp), 0, m - 1)
     span = max(int(np.max(k1 - k0)) + 1, 1) if len(k0) else 1
-    idx = np.arange(span)[:, None] + k0[None, :]
-    # In range by construction (k0 >= 0): a plain flat gather.
-    flat = np.minimum(idx, m - 1) * diff.shape[1] + np.arange(diff.shape[1])[None, :]
-    vals = np.where(idx <= k1[None, :], np.ravel(diff)[flat], _INT16_MIN)
-    return np.asarray(k0 + np.argmax(vals, axis=0), dtype=np.intp)
+    # Each line's window starts at k0, or earlier where it would run past the end.
+    start = np.minimum(k0, m - span)
+    window = _take_rows(samples, start, span + 1, np.arange(n))
+    vals = np.subtract(window[1:], window[:-1])
+    pos = np.arange(span, dtype=np.int16)[:, None]
+    if span <= _KEY_SPAN:
+        # Each step with its position in the low bits, 63 for the first: the largest
+        # key is the first largest step, by a maximum down the rows (numpy's argmax
+        # down the first axis runs one line at a time, several times slower).
+        np.left_shift(vals, _KEY_BITS, out=vals)
+        vals |= (_KEY_SPAN - 1) - pos
+    np.putmask(vals, pos > (k1 - start)[None, :], _INT16_MIN)
+    if bool((start < k0).any()):
+        np.putmask(vals, pos < (k0 - start)[None, :], _INT16_MIN)
+    if span <= _KEY_SPAN:
+        first = (_KEY_SPAN - 1) - (vals.max(axis=0) & (_KEY_SPAN - 1))
+    else:
+        first = np.argmax(vals, axis=0)
+    return np.asarray(start + first, dtype=np.intp)
+
+
+#: Bits of a step's key (:func:`_argmax_near`) that hold its position in the window.
+_KEY_BITS = 6
+_KEY_SPAN = 1 << _KEY_BITS
 
 
 def _inner_mean(
@@ -337,8 +403,12 @@ def _inner_mean(
     # Only the rows some line sums (the strip's middle, not its margins) are accumulated.
     r0 = int(k0.min())
     r1 = max(int(k1.max()), r0)
-    cs = np.zeros((r1 - r0 + 1, n), dtype=np.int32)
-    np.cumsum(prof[r0:r1], axis=0, out=cs[1:])
+    # Row by row: numpy's accumulation down the first axis runs one line at a time,
+    # several times slower.
+    cs = np.empty((r1 - r0 + 1, n), dtype=np.int32)
+    cs[0] = 0
+    for k in range(r1 - r0):
+        np.add(cs[k], prof[r0 + k], out=cs[k + 1])
     rr = np.arange(n)
     total = cs[k1 - r0, rr] - cs[k0 - r0, rr]
     return np.asarray(total / np.maximum(k1 - k0, 1), dtype=np.float64)
@@ -381,25 +451,80 @@ def _pooled_tilt(
     return out
 
 
+def _smoothed_levels(
+    level_out: NDArray[np.float64], level_in: NDArray[np.float64], bounds: NDArray[np.intp]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each strip's (``bounds``) two plateau levels smoothed along it by a running median
+    of 9 lines (fewer on a short strip), its ends held (``scipy.ndimage.median_filter``
+    with ``mode="nearest"``, to the bit). All strips' series of one size at once, each
+    padded with its end values apart from the next; size 9 by :func:`_running_median9`."""
+    n = len(level_out)
+    both = np.concatenate([level_out, level_in])
+    out = np.empty(2 * n)
+    segs = [(a + off, b + off) for off in (0, n) for a, b in itertools.pairwise(bounds)]
+    sizes = [min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1 for a, b in segs]
+    for k in sorted(set(sizes)):
+        h = k // 2
+        mine = [(int(a), int(b)) for (a, b), size in zip(segs, sizes, strict=True) if size == k]
+        idx = np.concatenate([_clip(np.arange(a - h, b + h), a, b - 1) for a, b in mine])
+        if k == 9:
+            med = _running_median9(both[idx])
+        else:
+            from scipy.ndimage import median_filter
+
+            med = median_filter(both[idx], size=k, mode="nearest")[h:]
+        j = 0
+        for a, b in mine:
+            out[a:b] = med[j : j + b - a]
+            j += b - a + 2 * h
+    return out[:n], out[n:]
+
+
+def _running_median9(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The medians of the ``len(p) - 8`` windows of 9 consecutive values of ``p`` (no
+    NaN), exactly: the median of the three sorted triples' largest minimum, median of
+    medians and smallest maximum (a min/max network, checked on every 0-1 input). The
+    triples are sorted once for all windows (consecutive windows share them): 18
+    vector operations instead of a heap per window."""
+    a, b, c = p[:-2], p[1:-1], p[2:]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    mn, t = np.minimum(lo, c), np.maximum(lo, c)
+    md, mx = np.minimum(hi, t), np.maximum(hi, t)
+    m = len(p) - 8
+    first = np.maximum(np.maximum(mn[:m], mn[3 : 3 + m]), mn[6 : 6 + m])
+    last = np.minimum(np.minimum(mx[:m], mx[3 : 3 + m]), mx[6 : 6 + m])
+    mid = _median3(md[:m], md[3 : 3 + m], md[6 : 6 + m])
+    return _median3(first, mid, last)
+
+
+def _median3(
+    a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Element-wise median of three arrays (no NaN)."""
+    return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
+
+
 def _median(values: NDArray[np.int16]) -> NDArray[np.float64]:
     """Column medians (as ``np.median``: the mean of the two middle values of an even
     column)."""
+    # A sort of each short column (numpy's vectorised small sort) costs half a partition
+    # by two middle indices.
     m = values.shape[0]
-    k = [(m - 1) // 2, m // 2]
-    part = np.partition(values.T, k, axis=1)
-    return np.asarray(0.5 * (part[:, k[0]].astype(np.float64) + part[:, k[1]]))
+    part = np.sort(values, axis=0)
+    return np.asarray(0.5 * (part[(m - 1) // 2].astype(np.float64) + part[m // 2]))
 
 
 def _window_edges(
-    prof: NDArray[np.int16],
+    padded: NDArray[np.int16],
+    pad: int,
     peak: NDArray[np.intp],
     half: NDArray[np.intp],
     lo: NDArray[np.float64] | None,
     hi: NDArray[np.float64] | None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Rising edges about the steepest step ``peak`` (step k between samples k and k+1,
-    at k + 0.5) of each line (column) of ``prof``, from one window of samples
-    peak-half .. peak+half+1:
+    at k + 0.5) of each line (column) of the profiles ``padded[pad:-pad]``, from one
+    window of samples peak-half .. peak+half+1 (``half`` at most ``pad``):
 
     - the first moment of the positive steps within ``half`` of the peak, and their sum
       (the edge's contrast), as :func:`vision.sampling.edge_moment`;
@@ -407,64 +532,72 @@ def _window_edges(
       same area between them (exact for any blur once the window spans the ramp; less
       noisy than the moment of the steps), NaN where the window leaves the line.
 
-    The lines are taken in two groups, windows up to 3 and wider: one array spans the
+    The lines are taken in two passes, windows up to 3 and wider: one array spans the
     widest window, and a few lines across blur or clutter would otherwise make every
     line's window 18 samples instead of 8."""
-    small = half <= 3
-    if small.all() or not small.any():
-        return _window_edges_group(prof, None, peak, half, lo, hi)
-    out = (np.empty(len(half)), np.empty(len(half)), np.empty(len(half)))
-    for sel in (np.flatnonzero(small), np.flatnonzero(~small)):
-        part = _window_edges_group(
-            prof,
-            sel,
-            peak[sel],
-            half[sel],
-            None if lo is None else lo[sel],
-            None if hi is None else hi[sel],
-        )
-        for o, p in zip(out, part, strict=True):
-            o[sel] = p
+    every = np.arange(len(peak))
+    wide = np.flatnonzero(half > 3)
+    if len(wide) in (0, len(half)):
+        return _window_edges_group(padded, pad, every, peak, half, lo, hi)
+    # Every line with its window cut to 3, then the few wide ones again (each line's
+    # own window is exact in either pass: see _window_edges_group).
+    out = _window_edges_group(padded, pad, every, peak, np.minimum(half, 3), lo, hi)
+    part = _window_edges_group(
+        padded,
+        pad,
+        wide,
+        peak[wide],
+        half[wide],
+        None if lo is None else lo[wide],
+        None if hi is None else hi[wide],
+    )
+    for o, p in zip(out, part, strict=True):
+        o[wide] = p
     return out
 
 
 def _window_edges_group(
-    prof: NDArray[np.int16],
-    cols: NDArray[np.intp] | None,
+    padded: NDArray[np.int16],
+    pad: int,
+    cols: NDArray[np.intp],
     peak: NDArray[np.intp],
     half: NDArray[np.intp],
     lo: NDArray[np.float64] | None,
     hi: NDArray[np.float64] | None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`_window_edges` for the lines ``cols`` (None: all)."""
+    """:func:`_window_edges` for the lines ``cols``."""
     n = len(peak)
+    m = padded.shape[0] - 2 * pad
     hmax = int(np.max(half)) if n else 0
-    offs = np.arange(-hmax, hmax + 2)
-    idx = peak[None, :] + offs[:, None]
-    v, inrange = _gather(prof, idx, cols)
-    every = bool(inrange.all())
-    # The steps of the window; step o (between samples o and o + 1 about the peak).
-    d = np.diff(v, axis=0)
-    ok_step = np.abs(offs[:-1])[:, None] <= half[None, :]
-    if not every:
-        ok_step &= inrange[:-1] & inrange[1:]
-    ok_step &= d > 0
-    d = np.where(ok_step, d, 0)
-    total = d.sum(axis=0, dtype=np.float64)
-    # Sums over the window as few whole-array operations as can be (each one's cost is
-    # mostly its call): the moment about the peak as one product with the offsets.
+    # The window's samples, offsets -hmax .. hmax + 1 about the peak. Past the line's
+    # ends they are the padding, which steps down into the line and out of it, so that
+    # only steps between the line's own samples can be positive.
+    v = _take_rows(padded, peak + (pad - hmax), 2 * hmax + 2, cols)
+    # Sums over the window (integers, exact in any order): each line's window
+    # (|offset| <= half) is the widest one less the rings |offset| = r > half, a few
+    # operations on one row each, not a mask over every line's widest window.
+    d = np.subtract(v[1:], v[:-1])  # the steps, offsets -hmax .. hmax
+    np.maximum(d, 0, out=d)  # only rising steps count
+    total = d.sum(axis=0, dtype=np.int32)
+    moment = (d * np.arange(-hmax, hmax + 1, dtype=np.int16)[:, None]).sum(axis=0, dtype=np.int32)
+    total_v = v.sum(axis=0, dtype=np.int32)
+    for r in range(int(np.min(half)) + 1 if n else 1, hmax + 1):
+        out = half < r
+        below, above = d[hmax - r], d[hmax + r]
+        total -= np.where(out, below + above, 0).astype(np.int32)
+        moment -= np.where(out, r * (above - below), 0).astype(np.int32)
+        total_v -= np.where(out, v[hmax - r] + v[hmax + r + 1], 0).astype(np.int32)
+    step = total.astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        centre = peak + 0.5 + (offs[:-1].astype(np.float64) @ d) / total
+        centre = peak + 0.5 + moment / step
     if lo is None or hi is None:
-        return centre, total, np.full(n, np.nan)
-    # The area of the window's samples above lo, in units of hi - lo: its 2 half + 2
-    # samples summed as integers.
-    inwin = (offs[:, None] >= -half[None, :]) & (offs[:, None] <= half[None, :] + 1)
-    ok = np.ones(n, dtype=bool) if every else np.all(inrange | ~inwin, axis=0)
-    total_v = np.where(inwin, v, 0).sum(axis=0, dtype=np.float64)
+        return centre, step, np.full(n, np.nan)
+    # The area of the window's 2 half + 2 samples above lo, in units of hi - lo; NaN
+    # where the window leaves the line.
+    ok = (peak >= half) & (peak + half + 1 < m) & (hi - lo > 1.0)
     frac = (total_v - (2 * half + 2) * lo) / np.maximum(hi - lo, 1e-6)
     area = (peak + half + 1).astype(np.float64) + 0.5 - frac
-    return centre, total, np.where(ok & (hi - lo > 1.0), area, np.nan)
+    return centre, step, np.where(ok, area, np.nan)
 
 
 def erf_edge(
@@ -521,13 +654,16 @@ def _erf_fit(
     # estimate runs off on lines that cross something else): NaN, like no start. Those
     # lines sit at the profile's middle, so every window is whole.
     m = np.shape(prof)[0]
+    if m < 2 * half + 1:  # no window fits
+        return np.full(len(c), np.nan)
     centre: NDArray[np.float64] = np.asarray(np.round(c), dtype=np.float64)
     ok &= (centre >= half) & (centre <= m - 1 - half)
     centre = np.asarray(np.where(ok, centre, float(m // 2)), dtype=np.float64)
     c = np.where(ok, c, centre)
-    idx = np.arange(-half, half + 1)[:, None] + centre.astype(np.intp)[None, :]
-    # (Every line with a start has its whole window; the rest are clipped and dropped.)
-    samples, _ = _gather(np.ascontiguousarray(prof), idx)
+    # (Every window is whole: a line without a start has the profile's middle.)
+    samples = _take_rows(
+        np.ascontiguousarray(prof), centre.astype(np.intp) - half, 2 * half + 1, np.arange(len(c))
+    )
     # The model is evaluated in single precision (twice the numpy throughput; numpy's
     # double exp is even scalar code on CPUs without AVX-512), about the window's
     # centre: the residuals are then good to 1e-5 DN and a step to 1e-7 px, far below
@@ -598,7 +734,10 @@ class _ErfWindow:
         self.amp32 = self.amp.astype(np.float32)
 
     def select(self, lines: NDArray[np.intp]) -> _ErfWindow:
-        return _ErfWindow(self.v[:, lines], self.offs, self.amp[lines], self.sign)
+        # Row-major again (the fancy index lays the copy out line by line, and every
+        # step's operations on it would run several times slower).
+        v = np.ascontiguousarray(self.v[:, lines])
+        return _ErfWindow(v, self.offs, self.amp[lines], self.sign)
 
     def step(
         self,
@@ -642,6 +781,9 @@ _AS_P = 0.3275911 / math.sqrt(2.0)  # for x = |u| / sqrt(2)
 _AS_A = (0.254829592, -0.284496736, 1.421413741, -1.453152027, 1.061405429)
 _AS_A32 = tuple(np.float32(a) for a in _AS_A)
 _AS_P32 = np.float32(_AS_P)
+_AS_A32_HALF = tuple(a * np.float32(0.5) for a in _AS_A32)
+_SIGN = np.int32(np.iinfo(np.int32).min)  # a float32's sign bit
+_MAGNITUDE = np.int32(np.iinfo(np.int32).max)  # the rest
 
 
 def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray[np.float32]:
@@ -649,7 +791,7 @@ def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray
     to 3e-7 in single precision: a few vector multiplies instead of
     ``scipy.special.ndtr``, a third of the time of a fit step. In a residual that is
     6e-5 DN on a 200 DN edge, against 2-10 DN of noise."""
-    a1, a2, a3, a4, a5 = _AS_A32
+    a1, a2, a3, a4, a5 = _AS_A32_HALF
     half = np.float32(0.5)
     # In place: at the fit's array sizes each operation's cost is mostly its call and
     # its fresh array.
@@ -661,9 +803,15 @@ def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray
     for a in (a4, a3, a2, a1):
         p += a
         p *= t
-    p *= g
-    p *= half  # Phi(-|u|)
+    # The coefficients halved: the polynomial's value is exactly half (every partial
+    # value is far from underflow where g > 0), so the product with g is Phi(-|u|)
+    # to the bit wherever it is not a subnormal, and those vanish from 1/2 - Phi(-|u|).
+    p *= g  # Phi(-|u|)
     np.subtract(half, p, out=p)
-    np.copysign(p, u, out=p)  # Phi(u) - 1/2
+    # Phi(u) - 1/2 = copysign(p, u), by the bits: np.copysign is scalar code, three
+    # times the cost of the two masks (the same result for every input).
+    bits = p.view(np.int32)
+    bits &= _MAGNITUDE
+    bits |= u.view(np.int32) & _SIGN
     p += half
     return p

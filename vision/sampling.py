@@ -18,12 +18,17 @@ def median(x: NDArray[np.float64]) -> float:
     a frame's measurement takes many medians of."""
     a = np.asarray(x, dtype=np.float64).ravel()
     n = a.size
-    if n == 0 or np.isnan(a).any():
+    if n == 0:
+        return math.nan
+    top = a.max()  # NaN if a value is: one reduction, not a mask
+    if top != top:
         return math.nan
     k = n // 2
+    part = a.copy()  # the ndarray method: np.partition's wrapper costs more than the work
     if n % 2:
-        return float(np.partition(a, k)[k])
-    part = np.partition(a, [k - 1, k])
+        part.partition(k)
+        return float(part[k])
+    part.partition((k - 1, k))
     return float(0.5 * (part[k - 1] + part[k]))
 
 

@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
+from scipy.ndimage import median_filter
 from scipy.special import ndtr
 
-from vision.edges import _ndtr_from_weight, erf_edge, strip_edges, strip_edges_many
+from vision.edges import (
+    _ndtr_from_weight,
+    _running_median9,
+    _smoothed_levels,
+    erf_edge,
+    strip_edges,
+    strip_edges_many,
+)
 from vision.sampling import bilinear, median
 
 
@@ -94,6 +104,29 @@ def test_normal_cdf_from_the_weight_is_accurate() -> None:
     assert err.max() < 3.5e-7
 
 
+def test_the_running_median_of_nine_is_exact() -> None:
+    # A min/max network: right on every 0-1 input means right on every input.
+    for bits in itertools.product((0.0, 1.0), repeat=9):
+        x = np.array(bits)
+        assert _running_median9(x)[0] == np.median(x)
+
+
+def test_smoothed_levels_are_each_strips_own_median_filter() -> None:
+    # Strips of every length a scan gives (short ones smooth over fewer lines), with
+    # ties (levels are half-integers): each strip's series as median_filter gives it.
+    rng = np.random.default_rng(11)
+    sizes = [1, 2, 3, 4, 7, 8, 9, 10, 31]
+    bounds = np.cumsum([0, *sizes])
+    out_levels = rng.integers(80, 90, bounds[-1]) * 0.5
+    in_levels = rng.integers(400, 420, bounds[-1]) * 0.5
+    lo, hi = _smoothed_levels(out_levels, in_levels, bounds)
+    for a, b in itertools.pairwise(bounds):
+        k = min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1
+        for got, x in ((lo, out_levels), (hi, in_levels)):
+            want = median_filter(x[a:b], size=k, mode="nearest")
+            np.testing.assert_array_equal(got[a:b], want)
+
+
 def test_median_is_numpys() -> None:
     rng = np.random.default_rng(0)
     for n in (1, 2, 3, 10, 11, 500):
@@ -101,6 +134,9 @@ def test_median_is_numpys() -> None:
         assert median(x) == float(np.median(x))
     assert np.isnan(median(np.array([1.0, np.nan, 2.0])))
     assert np.isnan(median(np.zeros(0)))
+    # Infinities are values like any other.
+    for x in ([-np.inf, 0.0, np.inf], [-np.inf, 1.0, 2.0, np.inf], [3.0, np.inf]):
+        assert median(np.array(x)) == float(np.median(x))
 
 
 def test_bilinear_interpolates_and_is_nan_off_the_image() -> None:
