@@ -573,8 +573,7 @@ def _follow(
             if finite.any():
                 levels[finite] = profile_levels(vals[finite])
             known = [
-                lh if ok else None
-                for lh, ok in zip(levels.tolist(), finite.tolist(), strict=True)
+                lh if ok else None for lh, ok in zip(levels.tolist(), finite.tolist(), strict=True)
             ]
         for k in range(len(ts)):
             near = 0.6 * max(prev_w, width)
