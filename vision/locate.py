@@ -329,20 +329,42 @@ def _circle_candidates(
     before = np.concatenate((top[-1:], top[:-1]))
     after = np.concatenate((top[1:], top[:1]))
     peaks = np.flatnonzero((top > thr) & (top >= before) & (top > after) & ok)
-    tl = top.tolist()  # the half-width walks index single samples
-    for p in peaks.tolist():
-        half = tl[p] / 2
-        i0 = p
-        while tl[i0 % n] > half and p - i0 < n // 4:
-            i0 -= 1
-        i1 = p
-        while tl[i1 % n] > half and i1 - p < n // 4:
-            i1 += 1
+    if not peaks.size:
+        return out
+    # Each peak's half-maximum ends: the first samples either side at or below half its
+    # height, at most a quarter of the circle away; read from a window of samples
+    # about every peak at once (a peak whose half maximum lies beyond it is walked
+    # sample by sample).
+    quarter = n // 4
+    reach = min(quarter, _WALK)
+    win = np.take(top, peaks[:, None] + np.arange(-reach, reach + 1)[None, :], mode="wrap")
+    half = win[:, reach] / 2
+    down = ~(win[:, reach::-1] > half[:, None])  # j samples before the peak
+    up = ~(win[:, reach:] > half[:, None])  # j samples after it
+    j_down = np.where(down.any(axis=1), down.argmax(axis=1), reach + 1).tolist()
+    j_up = np.where(up.any(axis=1), up.argmax(axis=1), reach + 1).tolist()
+    for p, h, jd, ju in zip(peaks.tolist(), half.tolist(), j_down, j_up, strict=True):
+        i0 = p - min(jd, quarter) if jd <= reach else _walk(top, p, h, -1, quarter)
+        i1 = p + min(ju, quarter) if ju <= reach else _walk(top, p, h, 1, quarter)
         wid = (i1 - i0 - 1) * step
         if lo <= wid <= hi:
             angle = float(phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n))
             out.append(_Candidate(angle, float(top[p]), wid, i0 + 1, i1 - 1))
     return out
+
+
+#: Samples either side of a peak on a search circle read at once for its half-maximum
+#: ends (:func:`_circle_candidates`).
+_WALK = 64
+
+
+def _walk(top: NDArray[np.float64], p: int, half: float, way: int, quarter: int) -> int:
+    """The first sample from peak ``p`` along ``way`` (+-1) around the circle whose
+    ``top`` is at or below ``half``, at most ``quarter`` samples away."""
+    n, i = len(top), p
+    while float(top[i % n]) > half and abs(i - p) < quarter:
+        i += way
+    return i
 
 
 def _circle_strips(
