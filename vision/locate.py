@@ -532,11 +532,11 @@ def _strip_end(
     v = bilinear(image, to_px(last[None, :] + t[:, None] * d[None, :]))
     if not np.isfinite(v[0]):
         return last
-    v = np.where(np.isfinite(v), v, np.nanmin(v))
-    thr = 0.5 * (v[: int(width / (0.5 * px_m))].mean() + np.min(v))
-    below = np.flatnonzero(v < thr)
-    below = below[below > 0]
-    return last + (t[below[0]] if below.size else t[-1]) * d
+    if not math.isfinite(float(v.sum())):  # NaN off the image only
+        v = np.where(np.isfinite(v), v, np.nanmin(v))
+    thr = 0.5 * (v[: int(width / (0.5 * px_m))].mean() + v.min())
+    below = np.flatnonzero(v[1:] < thr)  # past the first sample
+    return last + (t[int(below[0]) + 1] if below.size else t[-1]) * d
 
 
 #: Cross-profiles sampled at a time by :func:`_follow`: a first batch, then batches
