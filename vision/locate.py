@@ -236,21 +236,19 @@ class SearchCircles:
     widths: tuple[float, float] = (MIN_STRIP_WIDTH_M, MAX_STRIP_WIDTH_M)
     scales: tuple[float, ...] = ()
     hint: float = 0.01905
-    #: Sampling plans per image shape, made at the first frame of that shape.
-    plans: dict[tuple[int, ...], tuple[BilinearPlan, BilinearPlan]] = field(
-        default_factory=dict, compare=False
-    )
+    #: Sampling plans per image shape (both circles in one), made at the first frame of
+    #: that shape.
+    plans: dict[tuple[int, ...], BilinearPlan] = field(default_factory=dict, compare=False)
 
     def sample(self, image: NDArray[np.uint8]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The image along both circles (bilinear, NaN off the image)."""
-        plans = self.plans.get(image.shape)
-        if plans is None:
-            plans = (
-                BilinearPlan.at(image.shape, self.px[0]),
-                BilinearPlan.at(image.shape, self.px[1]),
-            )
-            self.plans[image.shape] = plans
-        return plans[0].sample(image), plans[1].sample(image)
+        plan = self.plans.get(image.shape)
+        if plan is None:
+            plan = BilinearPlan.at(image.shape, np.concatenate(self.px))
+            self.plans[image.shape] = plan
+        v = plan.sample(image)
+        n0 = len(self.px[0])
+        return v[:n0], v[n0:]
 
 
 def search_circles(
@@ -304,10 +302,12 @@ def _circle_candidates(
     crossing a circle about the pivot, from the image sampled along it (``v``) at angles
     ``phi``."""
     n = len(phi)
-    ok = np.isfinite(v)
-    if ok.sum() < 10:
-        return []
-    vv = v if ok.all() else np.where(ok, v, np.nanmedian(v))
+    ok: NDArray[np.bool_] | None = None  # None: every sample on the image
+    if not math.isfinite(float(v.sum())):  # NaN off the image
+        ok = np.isfinite(v)
+        if ok.sum() < 10:
+            return []
+    vv = v if ok is None else np.where(ok, v, np.nanmedian(v))
     # Top-hat: brightness above the local floor over 3 widths.
     k = max(3, round(3 * width / step))
     from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
@@ -328,7 +328,8 @@ def _circle_candidates(
     # Local maxima around the circle (np.roll's generality costs more than the compare).
     before = np.concatenate((top[-1:], top[:-1]))
     after = np.concatenate((top[1:], top[:1]))
-    peaks = np.flatnonzero((top > thr) & (top >= before) & (top > after) & ok)
+    at_peak = (top > thr) & (top >= before) & (top > after)
+    peaks = np.flatnonzero(at_peak if ok is None else at_peak & ok)
     if not peaks.size:
         return out
     # Each peak's half-maximum ends: the first samples either side at or below half its
@@ -397,9 +398,14 @@ def _best_pair(
     """The pair of strips, one on each circle at angles within 0.12 rad and widths within
     ``max_ratio``, of the largest summed contrast."""
     best = None
-    for s1 in c1:
-        for s2 in c2:
-            d = np.angle(np.exp(1j * (s2.angle - s1.angle)))
+    if not c1 or not c2:
+        return best
+    # The angles between every pair at once (the same complex arithmetic per pair).
+    a1 = np.array([s.angle for s in c1])
+    a2 = np.array([s.angle for s in c2])
+    gaps = np.angle(np.exp(1j * (a2[None, :] - a1[:, None]))).tolist()
+    for s1, row in zip(c1, gaps, strict=True):
+        for s2, d in zip(c2, row, strict=True):
             ratio = max(s1.width, s2.width) / min(s1.width, s2.width)
             if (
                 abs(d) < 0.12
