@@ -154,7 +154,7 @@ def end_edge(
     t = np.arange(guess - reach, guess + reach, step)
     pts = np.empty((len(lateral), len(t), 2))
     for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-        pts[:, :, c] = (origin[c] + t[None, :] * e[c]) + lateral[:, None] * n[c]
+        np.add(origin[c] + t * e[c], (lateral * n[c])[:, None], out=pts[:, :, c])
     v = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(lateral), len(t))
     if not math.isfinite(float(v.sum())):  # NaN off the image
         raise FrameFailure("clamp or tip outside the image")

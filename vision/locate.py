@@ -576,6 +576,7 @@ def _follow(
     n = np.array([-direction[1], direction[0]])
     offs = np.arange(-half_m, half_m + 0.375 * px_m, 0.75 * px_m)
     offs_l = offs.tolist()  # single offsets, read by the search
+    across = (offs * n[0], offs * n[1])  # the profiles' offsets in the plane, x and y
     step_o = float(offs[1] - offs[0])
     centres: list[float] = []
     widths: list[float] = []
@@ -588,7 +589,7 @@ def _follow(
         ts = ts_all[b0 : b0 + size]
         pts = np.empty((len(ts), len(offs), 2))
         for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-            pts[:, :, c] = (start[c] + ts[:, None] * direction[c]) + offs[None, :] * n[c]
+            np.add((start[c] + ts * direction[c])[:, None], across[c], out=pts[:, :, c])
         vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
         # The levels of every finite profile of the batch in one call (the search itself
         # depends on where the strip was in the previous profile). Samples are NaN off
