@@ -320,7 +320,7 @@ def _circle_candidates(
     )
     top = sm - floor
     noise = median(np.abs(np.diff(vv))) + 1.0
-    out = []
+    out: list[_Candidate] = []
     thr = max(10.0, 5 * noise)
     lo, hi = 0.55 * width, 1.7 * width
     if accept is not None:
@@ -486,14 +486,15 @@ def locate(
     # smears in proportion to the radius, and a strip's half-maximum width is the
     # larger of its width and its smear): the inner circle's, the outward profiles',
     # then the first inward profiles' (between the inner circle and the root).
-    shown = min(median(outward[1]), w0)
+    shown_out = median(outward[1])
+    shown = min(shown_out, w0)
     w_in = working_width(shown, beam_width)
     inward = _follow(
         image, to_px, p1, -d0, w_in, follow_half_width(w_in), beam_length, px_m, 1.4, True
     )
     pts_in, widths_in = inward
     if len(widths_in):
-        shown = min(median(outward[1]), median(widths_in[:3]))
+        shown = min(shown_out, median(widths_in[:3]))
     w_beam = working_width(shown, beam_width)
     wide = np.flatnonzero(widths_in > _HUB_WIDENING * w_beam)
     if wide.size < 2:
