@@ -68,25 +68,33 @@ def hub_axis(
         syy = float(dya @ dya + dyb @ dyb)
         sxy = float(dxa @ dya + dxb @ dyb)
         th = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
-        e2 = np.array([math.cos(th), math.sin(th)])
-        e2 = e2 if e2 @ e > 0 else -e2
-        ra, rb = dya * e2[0] - dxa * e2[1], dyb * e2[0] - dxb * e2[1]
-        sig = 1.4826 * median(np.abs(np.concatenate([ra, rb]))) + 1e-9
-        ka, kb = np.abs(ra) < 4 * sig, np.abs(rb) < 4 * sig
-        if ka.sum() < 3 or kb.sum() < 3:
+        c, s = math.cos(th), math.sin(th)
+        # The major axis's sense: along the rough axis (within a few degrees of it).
+        if not c * float(e[0]) + s * float(e[1]) > 0:
+            c, s = -c, -s
+        e = np.array([c, s])
+        ra, rb = dya * c - dxa * s, dyb * c - dxb * s
+        r = np.abs(np.concatenate([ra, rb]))
+        sig = 1.4826 * median(r) + 1e-9
+        keep = r < 4 * sig
+        ka, kb = keep[:na], keep[na:]
+        if np.count_nonzero(ka) < 3 or np.count_nonzero(kb) < 3:
             raise FrameFailure("hub edges not straight")
         xa, ya, xb, yb = xa[ka], ya[ka], xb[kb], yb[kb]
-        e = e2
     n = np.array([-e[1], e[0]])
     pa, pb = np.column_stack([xa, ya]), np.column_stack([xb, yb])
-    ca, cb = np.array([xa.mean(), ya.mean()]), np.array([xb.mean(), yb.mean()])
+    ca = np.array([xa.sum() / len(xa), ya.sum() / len(ya)])
+    cb = np.array([xb.sum() / len(xb), yb.sum() / len(yb)])
     ba, bb = float(ca @ n), float(cb @ n)
     # Direction uncertainty of the common-direction fit: residual / spread along it.
-    res = np.concatenate([(pa - ca) @ n, (pb - cb) @ n])
-    spread = float(np.sum(((pa - ca) @ e) ** 2) + np.sum(((pb - cb) @ e) ** 2))
+    da, db = pa - ca, pb - cb
+    ra, rb = da @ n, db @ n
+    res = np.concatenate([ra, rb])
+    ua, ub = da @ e, db @ e
+    spread = float((ua * ua).sum() + (ub * ub).sum())
     dof = max(len(res) - 3, 1)
     infl = max(correlation_inflation(_along(pa, e, n)), correlation_inflation(_along(pb, e, n)))
-    sd = math.sqrt(float(np.sum(res**2)) / dof / max(spread, 1e-18) * infl)
+    sd = math.sqrt(float((res * res).sum()) / dof / max(spread, 1e-18) * infl)
     return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
 
 
@@ -146,12 +154,12 @@ def end_edge(
     t = np.arange(guess - reach, guess + reach, step)
     pts = np.empty((len(lateral), len(t), 2))
     for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-        pts[:, :, c] = (origin[c] + t[None, :] * e[c]) + lateral[:, None] * n[c]
+        np.add(origin[c] + t * e[c], (lateral * n[c])[:, None], out=pts[:, :, c])
     v = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(lateral), len(t))
-    if not np.all(np.isfinite(v)):
+    if not math.isfinite(float(v.sum())):  # NaN off the image
         raise FrameFailure("clamp or tip outside the image")
     prof = v.mean(axis=0)
-    diff = -np.diff(prof)
+    diff = prof[:-1] - prof[1:]  # bright to dark: the fall from each sample to the next
     centre, total = _step_moment(diff, int(np.argmax(diff)), round(3.0 / 0.25))
     if not math.isfinite(centre) or total < 8.0:
         raise FrameFailure("no clear end edge (clamp or tip)")

@@ -132,15 +132,34 @@ def find_strip(
             return None
         v = np.where(ok, values, np.nanmedian(values)) if not ok.all() else values
         lo, hi = (float(x) for x in profile_levels(v[None, :])[0])
+    return _strip(v, offsets, float(offsets[1] - offsets[0]), expect, near, lo, hi)
+
+
+#: ``np.maximum.reduce``: a slice's maximum without ``ndarray.max``'s wrapper.
+_max = np.maximum.reduce
+
+
+def _strip(
+    v: NDArray[np.float64],
+    offsets: NDArray[np.float64] | list[float],
+    step: float,
+    expect: float,
+    near: float | None,
+    lo: float,
+    hi: float,
+) -> Strip | None:
+    """:func:`find_strip` of a finite profile ``v`` of levels ``lo``, ``hi`` at
+    ``offsets`` (ascending, uniform, ``step`` apart; a list of floats in a loop over
+    profiles: single offsets are read from it)."""
+    n = len(v)
     if near is not None:
         # Only the slice about the window (uniform offsets) is tested, a sample wider
         # than it either side, with the same test.
         # The offsets are ascending and uniform, so the close ones are one run: its
         # ends from the spacing, then settled by the same test on single offsets.
         o0 = float(offsets[0])
-        step0 = float(offsets[1] - offsets[0])
-        j0 = min(max(int((expect - near - o0) / step0), 0), n - 1)
-        j1 = min(max(int((expect + near - o0) / step0), 0), n - 1)
+        j0 = min(max(int((expect - near - o0) / step), 0), n - 1)
+        j1 = min(max(int((expect + near - o0) / step), 0), n - 1)
         while j0 > 0 and abs(float(offsets[j0 - 1]) - expect) <= near:
             j0 -= 1
         while j0 <= j1 and abs(float(offsets[j0]) - expect) > near:
@@ -150,31 +169,24 @@ def find_strip(
         while j1 >= j0 and abs(float(offsets[j1]) - expect) > near:
             j1 -= 1
         if j0 <= j1:
-            hi = float(v[j0 : j1 + 1].max())
+            hi = float(_max(v[j0 : j1 + 1]))
     if hi - lo < 12.0:
         return None
     thr = 0.5 * (lo + hi)
     above = (v > thr).view(np.int8)
     d = above[1:] - above[:-1]
-    where = d.nonzero()[0]
+    # The sample before each change: changes alternate, up (first sample above at i + 1)
+    # and down (last sample above at i); a run is an up and the down after it.
+    where = d.nonzero()[0].tolist()
+    first = 0 if where and d[where[0]] == 1 else 1
+    m = (len(where) - first) // 2
+    if m <= 0:
+        return None
     # A profile has a few runs: their ends and centres in plain floats (the same
     # arithmetic, without a numpy call per step).
-    starts, ends = [], []
-    for i, g in zip(where.tolist(), d[where].tolist(), strict=True):
-        if g == 1:
-            starts.append(i + 1)  # first sample above
-        else:
-            ends.append(i)  # last sample above
-    if not starts or not ends:
-        return None
-    ends = [e for e in ends if e >= starts[0]]
-    m = min(len(starts), len(ends))
-    if m == 0:
-        return None
-    step = float(offsets[1] - offsets[0])
     best, best_k = None, 0
     for k in range(m):
-        s0, s1 = starts[k], ends[k]
+        s0, s1 = where[first + 2 * k] + 1, where[first + 2 * k + 1]
         v0, v1, w0, w1 = float(v[s0 - 1]), float(v[s0]), float(v[s1]), float(v[s1 + 1])
         a = float(offsets[s0 - 1]) + (thr - v0) / (v1 - v0) * step
         b = float(offsets[s1]) + (w0 - thr) / (w0 - w1) * step
@@ -182,16 +194,18 @@ def find_strip(
         if best is None or abs(c - expect) < abs(best[0] - expect):
             best, best_k = (c, b - a), k
     assert best is not None
-    peak = float(v[starts[best_k] : ends[best_k] + 1].max())
+    s0, s1 = where[first + 2 * best_k] + 1, where[first + 2 * best_k + 1]
+    peak = float(_max(v[s0 : s1 + 1]))
     return Strip(best[0], best[1], peak - lo)
 
 
 def profile_levels(values: NDArray[np.float64]) -> NDArray[np.float64]:
     """(K, 2) background and bright level of each finite profile (K, M): its 20th and
-    98th percentile samples (two order statistics; no full sort)."""
+    98th percentile samples (two order statistics: numpy's vectorised sort of the rows
+    takes a third of the time of a partition about the two)."""
     n = values.shape[1]
     k = [int(0.2 * (n - 1)), int(0.98 * (n - 1))]
-    return np.asarray(np.partition(values, k, axis=1)[:, k], dtype=np.float64)
+    return np.asarray(np.sort(values, axis=1)[:, k], dtype=np.float64)
 
 
 def profile(
@@ -222,21 +236,19 @@ class SearchCircles:
     widths: tuple[float, float] = (MIN_STRIP_WIDTH_M, MAX_STRIP_WIDTH_M)
     scales: tuple[float, ...] = ()
     hint: float = 0.01905
-    #: Sampling plans per image shape, made at the first frame of that shape.
-    plans: dict[tuple[int, ...], tuple[BilinearPlan, BilinearPlan]] = field(
-        default_factory=dict, compare=False
-    )
+    #: Sampling plans per image shape (both circles in one), made at the first frame of
+    #: that shape.
+    plans: dict[tuple[int, ...], BilinearPlan] = field(default_factory=dict, compare=False)
 
     def sample(self, image: NDArray[np.uint8]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The image along both circles (bilinear, NaN off the image)."""
-        plans = self.plans.get(image.shape)
-        if plans is None:
-            plans = (
-                BilinearPlan.at(image.shape, self.px[0]),
-                BilinearPlan.at(image.shape, self.px[1]),
-            )
-            self.plans[image.shape] = plans
-        return plans[0].sample(image), plans[1].sample(image)
+        plan = self.plans.get(image.shape)
+        if plan is None:
+            plan = BilinearPlan.at(image.shape, np.concatenate(self.px))
+            self.plans[image.shape] = plan
+        v = plan.sample(image)
+        n0 = len(self.px[0])
+        return v[:n0], v[n0:]
 
 
 def search_circles(
@@ -290,10 +302,12 @@ def _circle_candidates(
     crossing a circle about the pivot, from the image sampled along it (``v``) at angles
     ``phi``."""
     n = len(phi)
-    ok = np.isfinite(v)
-    if ok.sum() < 10:
-        return []
-    vv = v if ok.all() else np.where(ok, v, np.nanmedian(v))
+    ok: NDArray[np.bool_] | None = None  # None: every sample on the image
+    if not math.isfinite(float(v.sum())):  # NaN off the image
+        ok = np.isfinite(v)
+        if ok.sum() < 10:
+            return []
+    vv = v if ok is None else np.where(ok, v, np.nanmedian(v))
     # Top-hat: brightness above the local floor over 3 widths.
     k = max(3, round(3 * width / step))
     from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
@@ -306,7 +320,7 @@ def _circle_candidates(
     )
     top = sm - floor
     noise = median(np.abs(np.diff(vv))) + 1.0
-    out = []
+    out: list[_Candidate] = []
     thr = max(10.0, 5 * noise)
     lo, hi = 0.55 * width, 1.7 * width
     if accept is not None:
@@ -314,21 +328,44 @@ def _circle_candidates(
     # Local maxima around the circle (np.roll's generality costs more than the compare).
     before = np.concatenate((top[-1:], top[:-1]))
     after = np.concatenate((top[1:], top[:1]))
-    peaks = np.flatnonzero((top > thr) & (top >= before) & (top > after) & ok)
-    tl = top.tolist()  # the half-width walks index single samples
-    for p in peaks.tolist():
-        half = tl[p] / 2
-        i0 = p
-        while tl[i0 % n] > half and p - i0 < n // 4:
-            i0 -= 1
-        i1 = p
-        while tl[i1 % n] > half and i1 - p < n // 4:
-            i1 += 1
+    at_peak = (top > thr) & (top >= before) & (top > after)
+    peaks = np.flatnonzero(at_peak if ok is None else at_peak & ok)
+    if not peaks.size:
+        return out
+    # Each peak's half-maximum ends: the first samples either side at or below half its
+    # height, at most a quarter of the circle away; read from a window of samples
+    # about every peak at once (a peak whose half maximum lies beyond it is walked
+    # sample by sample).
+    quarter = n // 4
+    reach = min(quarter, _WALK)
+    win = np.take(top, peaks[:, None] + np.arange(-reach, reach + 1)[None, :], mode="wrap")
+    half = win[:, reach] / 2
+    down = ~(win[:, reach::-1] > half[:, None])  # j samples before the peak
+    up = ~(win[:, reach:] > half[:, None])  # j samples after it
+    j_down = np.where(down.any(axis=1), down.argmax(axis=1), reach + 1).tolist()
+    j_up = np.where(up.any(axis=1), up.argmax(axis=1), reach + 1).tolist()
+    for p, h, jd, ju in zip(peaks.tolist(), half.tolist(), j_down, j_up, strict=True):
+        i0 = p - min(jd, quarter) if jd <= reach else _walk(top, p, h, -1, quarter)
+        i1 = p + min(ju, quarter) if ju <= reach else _walk(top, p, h, 1, quarter)
         wid = (i1 - i0 - 1) * step
         if lo <= wid <= hi:
             angle = float(phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n))
             out.append(_Candidate(angle, float(top[p]), wid, i0 + 1, i1 - 1))
     return out
+
+
+#: Samples either side of a peak on a search circle read at once for its half-maximum
+#: ends (:func:`_circle_candidates`).
+_WALK = 64
+
+
+def _walk(top: NDArray[np.float64], p: int, half: float, way: int, quarter: int) -> int:
+    """The first sample from peak ``p`` along ``way`` (+-1) around the circle whose
+    ``top`` is at or below ``half``, at most ``quarter`` samples away."""
+    n, i = len(top), p
+    while float(top[i % n]) > half and abs(i - p) < quarter:
+        i += way
+    return i
 
 
 def _circle_strips(
@@ -361,9 +398,14 @@ def _best_pair(
     """The pair of strips, one on each circle at angles within 0.12 rad and widths within
     ``max_ratio``, of the largest summed contrast."""
     best = None
-    for s1 in c1:
-        for s2 in c2:
-            d = np.angle(np.exp(1j * (s2.angle - s1.angle)))
+    if not c1 or not c2:
+        return best
+    # The angles between every pair at once (the same complex arithmetic per pair).
+    a1 = np.array([s.angle for s in c1])
+    a2 = np.array([s.angle for s in c2])
+    gaps = np.angle(np.exp(1j * (a2[None, :] - a1[:, None]))).tolist()
+    for s1, row in zip(c1, gaps, strict=True):
+        for s2, d in zip(c2, row, strict=True):
             ratio = max(s1.width, s2.width) / min(s1.width, s2.width)
             if (
                 abs(d) < 0.12
@@ -444,14 +486,15 @@ def locate(
     # smears in proportion to the radius, and a strip's half-maximum width is the
     # larger of its width and its smear): the inner circle's, the outward profiles',
     # then the first inward profiles' (between the inner circle and the root).
-    shown = min(median(outward[1]), w0)
+    shown_out = median(outward[1])
+    shown = min(shown_out, w0)
     w_in = working_width(shown, beam_width)
     inward = _follow(
         image, to_px, p1, -d0, w_in, follow_half_width(w_in), beam_length, px_m, 1.4, True
     )
     pts_in, widths_in = inward
     if len(widths_in):
-        shown = min(median(outward[1]), median(widths_in[:3]))
+        shown = min(shown_out, median(widths_in[:3]))
     w_beam = working_width(shown, beam_width)
     wide = np.flatnonzero(widths_in > _HUB_WIDENING * w_beam)
     if wide.size < 2:
@@ -496,15 +539,18 @@ def _strip_end(
     v = bilinear(image, to_px(last[None, :] + t[:, None] * d[None, :]))
     if not np.isfinite(v[0]):
         return last
-    v = np.where(np.isfinite(v), v, np.nanmin(v))
-    thr = 0.5 * (v[: int(width / (0.5 * px_m))].mean() + np.min(v))
-    below = np.flatnonzero(v < thr)
-    below = below[below > 0]
-    return last + (t[below[0]] if below.size else t[-1]) * d
+    if not math.isfinite(float(v.sum())):  # NaN off the image only
+        v = np.where(np.isfinite(v), v, np.nanmin(v))
+    thr = 0.5 * (v[: int(width / (0.5 * px_m))].mean() + v.min())
+    below = np.flatnonzero(v[1:] < thr)  # past the first sample
+    return last + (t[int(below[0]) + 1] if below.size else t[-1]) * d
 
 
-#: Cross-profiles sampled at a time by :func:`_follow`.
+#: Cross-profiles sampled at a time by :func:`_follow`: a first batch, then batches
+#: growing from a few (a strip followed past the first batch usually ends soon after:
+#: a hub's back end; every profile sampled and not searched is work lost).
 _FOLLOW_BATCH = 16
+_FOLLOW_MORE = (2, 4, 8)
 
 
 def _follow(
@@ -530,33 +576,43 @@ def _follow(
     ts_all = np.arange(step, max_len + step / 2, step)
     n = np.array([-direction[1], direction[0]])
     offs = np.arange(-half_m, half_m + 0.375 * px_m, 0.75 * px_m)
+    offs_l = offs.tolist()  # single offsets, read by the search
+    across = (offs * n[0], offs * n[1])  # the profiles' offsets in the plane, x and y
+    step_o = float(offs[1] - offs[0])
     centres: list[float] = []
     widths: list[float] = []
     at: list[int] = []  # the profiles that found the strip
     expect, prev_w = 0.0, width
     lost = False
     missed = False
-    for b0 in range(0, len(ts_all), _FOLLOW_BATCH):
-        if lost:
-            break
-        ts = ts_all[b0 : b0 + _FOLLOW_BATCH]
+    b0, size, more = 0, _FOLLOW_BATCH, iter(_FOLLOW_MORE)
+    while b0 < len(ts_all) and not lost:
+        ts = ts_all[b0 : b0 + size]
         pts = np.empty((len(ts), len(offs), 2))
         for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-            pts[:, :, c] = (start[c] + ts[:, None] * direction[c]) + offs[None, :] * n[c]
+            np.add((start[c] + ts * direction[c])[:, None], across[c], out=pts[:, :, c])
         vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
         # The levels of every finite profile of the batch in one call (the search itself
-        # depends on where the strip was in the previous profile).
-        finite = np.asarray(np.isfinite(vals).all(axis=1), dtype=bool)
-        levels = np.full((len(ts), 2), np.nan)
-        if finite.any():
-            levels[finite] = profile_levels(vals[finite])
-        known = [
-            (lo, hi) if ok else None
-            for (lo, hi), ok in zip(levels.tolist(), finite.tolist(), strict=True)
-        ]
+        # depends on where the strip was in the previous profile). Samples are NaN off
+        # the image only, so a finite sum is a finite batch.
+        if math.isfinite(float(vals.sum())):
+            known: list[list[float] | None] = list(profile_levels(vals).tolist())
+        else:
+            finite = np.asarray(np.isfinite(vals).all(axis=1), dtype=bool)
+            levels = np.full((len(ts), 2), np.nan)
+            if finite.any():
+                levels[finite] = profile_levels(vals[finite])
+            known = [
+                lh if ok else None for lh, ok in zip(levels.tolist(), finite.tolist(), strict=True)
+            ]
         for k in range(len(ts)):
             near = 0.6 * max(prev_w, width)
-            s = find_strip(vals[k], offs, expect, near=near, levels=known[k])
+            lh = known[k]
+            s = (
+                find_strip(vals[k], offs, expect, near=near)
+                if lh is None
+                else _strip(vals[k], offs_l, step_o, expect, near, lh[0], lh[1])
+            )
             if (
                 s is None
                 or s.width < 0.5 * width
@@ -578,6 +634,8 @@ def _follow(
             widths.append(s.width)
             at.append(b0 + k)
             expect, prev_w = s.centre, s.width
+        b0 += len(ts)
+        size = next(more, 2 * size)
     if not centres:
         return np.zeros((0, 2)), np.zeros(0)
     cs = np.array(centres)

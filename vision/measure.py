@@ -286,8 +286,9 @@ class Measurer:
             on_axis = d_clamp * e
             la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
             amax = float(max(la[:, 0].max(), lb[:, 0].max()))
-            ha = np.column_stack([(hub_a - on_axis) @ e, (hub_a - on_axis) @ n])
-            hb = np.column_stack([(hub_b - on_axis) @ e, (hub_b - on_axis) @ n])
+            da, db = hub_a - on_axis, hub_b - on_axis
+            ha = np.column_stack([da @ e, da @ n])
+            hb = np.column_stack([db @ e, db @ n])
             res = fit_clamped_joint(
                 la, lb, ha, hb, self.poly_degree, amax, d_clamp, edge_slope=slope_fn
             )
@@ -437,8 +438,9 @@ class Measurer:
             on_axis = d_clamp * e
             la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
             amax = float(max(la[:, 0].max(), lb[:, 0].max()))
-            ha = np.column_stack([(hub_a - on_axis) @ e, (hub_a - on_axis) @ n])
-            hb = np.column_stack([(hub_b - on_axis) @ e, (hub_b - on_axis) @ n])
+            da, db = hub_a - on_axis, hub_b - on_axis
+            ha = np.column_stack([da @ e, da @ n])
+            hb = np.column_stack([db @ e, db @ n])
             res = fit_clamped_joint(
                 la,
                 lb,
@@ -699,14 +701,16 @@ class Measurer:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The beam's edge points in the hub frame (a from the clamp along e, b along n),
         those clear of the shoulders, named by side: left (b above the other) first."""
-        ha = np.column_stack([(pa - clamp) @ e, (pa - clamp) @ n])
-        hb = np.column_stack([(pb - clamp) @ e, (pb - clamp) @ n])
+        da, db = pa - clamp, pb - clamp
+        aa, ab = da @ e, db @ e
         a0 = self._beam_start(hub_w)
-        k = (ha[:, 0] > a0) & (hb[:, 0] > a0)
-        ha, hb = ha[k], hb[k]
-        if len(ha) < 5 or ha[:, 0].max() < 0.3 * length:
+        k = (aa > a0) & (ab > a0)
+        aa, ab = aa[k], ab[k]
+        if len(aa) < 5 or aa.max() < 0.3 * length:
             raise FrameFailure("beam too short in view")
-        swap = median(ha[:, 1] - hb[:, 1]) < 0
+        ba, bb = (da @ n)[k], (db @ n)[k]
+        ha, hb = np.column_stack([aa, ba]), np.column_stack([ab, bb])
+        swap = median(ba - bb) < 0
         return (hb, ha) if swap else (ha, hb)
 
     def _tip(

@@ -72,3 +72,44 @@ def test_find_strip_with_precomputed_levels_is_the_same() -> None:
         assert a is not None and b is not None, k
         assert (a.centre, a.width, a.contrast) == (b.centre, b.width, b.contrast), k
         assert abs(a.centre - centre) < 0.5 and abs(a.width - width) < 1.0, k
+
+
+def test_search_circles_sample_each_image_shape_with_its_own_plan() -> None:
+    """The circles' sampling plan is kept per image shape: frames of another size are
+    sampled at the same points with their own plan (NaN off the image), not with the
+    first shape's gather indices."""
+    from vision.sampling import bilinear
+
+    centre = np.array([150.0, 110.0])
+    scale = 1.0 / 1.5e-3  # px per m
+
+    def to_px(p: np.ndarray) -> np.ndarray:
+        return centre + np.asarray(p) * np.array([scale, -scale])
+
+    circles = search_circles(to_px, 0.6, 0.012, 1.5e-3)
+    rng = np.random.default_rng(7)
+    small = rng.integers(0, 256, (240, 300), dtype=np.uint8)
+    large = rng.integers(0, 256, (400, 520), dtype=np.uint8)
+    for image in (small, large, small):
+        v1, v2 = circles.sample(image)
+        np.testing.assert_array_equal(v1, bilinear(image, circles.px[0]))
+        np.testing.assert_array_equal(v2, bilinear(image, circles.px[1]))
+    assert set(circles.plans) == {small.shape, large.shape}
+    # the small frame cuts the outer circle (NaN there), not the inner one
+    assert np.isnan(v2).any() and np.isfinite(v2).any() and np.isfinite(v1).all()
+
+
+def test_the_follows_batches_change_nothing(nominal_spec, vt, monkeypatch) -> None:
+    """The follow samples its cross-profiles a batch at a time only to save work: one
+    profile at a time finds the same rough geometry, bit for bit."""
+    import vision.locate as vloc
+
+    frame = render_frame(nominal_spec, [vt.bent(math.radians(280), 0.04)])
+    m = Measurer(vt.truth_calibration(frame.truth))
+    args = (frame.image, m.calibration.to_px, vt.L_M, vt.W_M, m.px_m)
+    a = locate(*args)
+    monkeypatch.setattr(vloc, "_FOLLOW_BATCH", 1)
+    monkeypatch.setattr(vloc, "_FOLLOW_MORE", (1,))
+    b = locate(*args)
+    for name in ("beam", "clamp", "hub_back", "hub_width", "tip", "hub", "beam_width"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
