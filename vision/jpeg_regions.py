@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -32,7 +33,7 @@ from vision.errors import DecodeError, ParameterError
 _MCU_PX = 8  # a single-component scan's MCU is one 8 x 8 block
 # the spliced JPEG's height is a 16-bit field: at most this many segments in one splice
 _MAX_SEGMENTS = 65535 // _MCU_PX
-_RST = [bytes((0xFF, 0xD0 + k)) for k in range(8)]
+_EOI = b"\xff\xd9"
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,13 +53,15 @@ class JpegLayout:
     starts: NDArray[np.intp]
     ends: NDArray[np.intp]
 
-    def __post_init__(self) -> None:
-        # plain lists: a splice indexes them segment by segment
-        object.__setattr__(self, "starts_list", self.starts.tolist())
-        object.__setattr__(self, "ends_list", self.ends.tolist())
+    @cached_property
+    def starts_list(self) -> list[int]:
+        """``starts`` as a list (for callers that index it segment by segment)."""
+        return list(self.starts.tolist())
 
-    starts_list: list[int] = field(init=False, repr=False)
-    ends_list: list[int] = field(init=False, repr=False)
+    @cached_property
+    def ends_list(self) -> list[int]:
+        """``ends`` as a list."""
+        return list(self.ends.tolist())
 
     @property
     def segment_px(self) -> tuple[int, int]:
@@ -120,22 +123,25 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     # or the marker that ends the scan.
     buf = np.frombuffer(data, dtype=np.uint8)
     ff = np.flatnonzero(buf[scan_at:-1] == 0xFF) + scan_at
-    nxt = buf[ff + 1]
-    marks = ff[nxt != 0]
+    marks = ff[buf[ff + 1] != 0]
     kinds = buf[marks + 1]
-    is_rst = (kinds >= 0xD0) & (kinds <= 0xD7)
+    is_rst = (kinds & 0xF8) == 0xD0
     end_of_scan = np.flatnonzero(~is_rst)
     if end_of_scan.size == 0 or kinds[end_of_scan[0]] != 0xD9:
         return None  # the scan must end at EOI (one scan: baseline gray)
     rst = marks[: end_of_scan[0]]
     if rst.size != n_seg - 1:
         return None
-    numbers = buf[rst + 1].astype(np.intp) - 0xD0
-    if np.any(numbers != np.arange(rst.size) % 8):
+    numbers = kinds[: rst.size]  # each RSTn: 0xD0..0xD7 in turn from RST0
+    if rst.size and (numbers[0] != 0xD0 or np.any(((numbers[1:] - numbers[:-1]) & 7) != 1)):
         return None
     stop = int(marks[end_of_scan[0]])
-    starts = np.concatenate(([scan_at], rst + 2)).astype(np.intp)
-    ends = np.concatenate((rst, [stop])).astype(np.intp)
+    starts = np.empty(n_seg, dtype=np.intp)
+    starts[0] = scan_at
+    starts[1:] = rst + 2
+    ends = np.empty(n_seg, dtype=np.intp)
+    ends[:-1] = rst
+    ends[-1] = stop
     return JpegLayout(
         data=data,
         width_px=width,
@@ -166,33 +172,62 @@ def segments_covering(layout: JpegLayout, mask_px: NDArray[np.bool_]) -> NDArray
 def segments_of_blocks(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.intp]:
     """The segments (raster indices) holding any True 8 x 8 block of a [block row, block
     col] mask (``ceil(height / 8)`` x ``ceil(width / 8)``)."""
+    return np.flatnonzero(segment_hits(layout, blocks))
+
+
+def segment_hits(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Per segment (raster order), whether it holds any True block of a [block row,
+    block col] mask (``ceil(height / 8)`` x ``ceil(width / 8)``)."""
     shape = (layout.mcu_rows, layout.per_row * layout.interval)
     if blocks.shape != shape:
         raise ParameterError("blocks", f"must be {shape[0]} x {shape[1]}, got {blocks.shape}")
-    hit = blocks.reshape(layout.mcu_rows, layout.per_row, layout.interval).any(axis=2)
-    return np.flatnonzero(hit.ravel())
+    per_seg = np.ascontiguousarray(blocks, dtype=bool).reshape(shape[0] * layout.per_row, -1)
+    k = layout.interval
+    if k % 8 == 0:  # a segment's flags as 64-bit words, OR-ed column by column (numpy's
+        # reduction along a short axis costs ten times more)
+        words = per_seg.view(np.uint64)
+        acc = words[:, 0].copy()
+        for j in range(1, k // 8):
+            acc |= words[:, j]
+        return acc != 0
+    if k in _UINT_OF_BYTES:
+        return per_seg.view(_UINT_OF_BYTES[k]).ravel() != 0
+    return np.asarray(per_seg.any(axis=1))
+
+
+_UINT_OF_BYTES = {1: np.uint8, 2: np.uint16, 4: np.uint32}
 
 
 def splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytes:
     """A baseline JPEG of the given segments (ascending raster indices), one MCU row each,
     ``interval`` MCUs wide."""
+    return bytes(_splice(layout, segments))
+
+
+def _splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytearray:
     seg_w, seg_h = layout.segment_px
-    n = len(segments)
+    seg = np.asarray(segments, dtype=np.intp)
+    n = len(seg)
     if not 0 < n <= _MAX_SEGMENTS:
         raise ParameterError("segments", f"must number 1..{_MAX_SEGMENTS}, got {n}")
     head = bytearray(layout.header)
     struct.pack_into(">HH", head, layout.sof_size_at, n * seg_h, seg_w)
-    # One gather of the scan's bytes: each segment after the first with the two bytes
-    # before it (its restart marker), renumbered RST0..7 in the splice's order.
-    seg = np.asarray(segments, dtype=np.intp)
-    lo = layout.starts[seg] - 2
+    # Runs of consecutive segments are one stretch of the scan each, their restart
+    # markers in it; every segment after the first follows its marker (two bytes),
+    # renumbered RST0..7 in the splice's order once the bytes are joined.
+    brk = np.flatnonzero(seg[1:] != seg[:-1] + 1) + 1
+    lo = layout.starts[seg[np.concatenate(([0], brk))]] - 2
     lo[0] += 2
-    lens = layout.ends[seg] - lo
-    out_at = np.concatenate(([0], np.cumsum(lens)))
-    idx = np.arange(int(out_at[-1]), dtype=np.intp) + np.repeat(lo - out_at[:-1], lens)
-    body = np.frombuffer(layout.data, dtype=np.uint8)[idx]
-    body[out_at[1:-1] + 1] = 0xD0 + (np.arange(n - 1) & 7)
-    return b"".join((bytes(head), body.tobytes(), b"\xff\xd9"))
+    hi = layout.ends[seg[np.concatenate((brk - 1, [n - 1]))]]
+    scan = memoryview(layout.data)
+    out = bytearray().join(
+        [head, *[scan[a:b] for a, b in zip(lo.tolist(), hi.tolist(), strict=True)], _EOI]
+    )
+    if n > 1:
+        lens = layout.ends[seg[:-1]] - layout.starts[seg[:-1]]
+        at = len(head) + np.cumsum(lens) + 2 * np.arange(1, n) - 1
+        np.frombuffer(out, dtype=np.uint8)[at] = 0xD0 + (np.arange(n - 1) & 7)
+    return out
 
 
 def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.uint8]:
@@ -204,7 +239,7 @@ def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[n
     parts = []
     for k in range(0, len(segments), _MAX_SEGMENTS):
         part = segments[k : k + _MAX_SEGMENTS]
-        strip = _imdecode(splice(layout, part))
+        strip = _imdecode(_splice(layout, part))
         if strip.shape != (len(part) * seg_h, seg_w):
             raise DecodeError(len(layout.data))
         parts.append(strip)
@@ -265,7 +300,7 @@ def decode_reduced(data: bytes, reduction: int) -> NDArray[np.uint8]:
     return _imdecode(data, flags[reduction])
 
 
-def _imdecode(data: bytes, flags: int = cv2.IMREAD_GRAYSCALE) -> NDArray[np.uint8]:
+def _imdecode(data: bytes | bytearray, flags: int = cv2.IMREAD_GRAYSCALE) -> NDArray[np.uint8]:
     buf = np.frombuffer(data, dtype=np.uint8)
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
@@ -288,6 +323,7 @@ __all__ = [
     "image_of",
     "jpeg_layout",
     "paste",
+    "segment_hits",
     "segments_covering",
     "segments_of_blocks",
     "splice",

@@ -72,6 +72,20 @@ def test_parts_measure_as_the_whole_frame(scene) -> None:
     assert max(reader.stats.decoded_fraction) < 0.6
 
 
+@pytest.mark.parametrize("interval", [4, 5, 8, 40])
+def test_other_restart_intervals_measure_as_the_whole_frame(scene, interval: int) -> None:
+    """A camera writing another restart interval (segments of 4, 5, 8 or 40 MCUs of the
+    160 in a row): measured from its parts, as from the whole frame."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    data = encode(frames[3], "jpeg", 85, restart_interval_mcu=interval)
+    got = reader.measure(data)
+    assert got.ok, got.reason
+    _same(got, measurer.measure(decode(data)))
+    assert reader.stats.parts == 1
+
+
 def test_a_region_read_beyond_what_was_decoded_is_decoded_and_measured_again(scene) -> None:
     """A track that says the hub ends at the pivot (it reaches 0.59 m behind it): the
     first decode cuts the hub short, the check finds the measurement read past it, the
