@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -34,6 +35,8 @@ _MCU_PX = 8  # a single-component scan's MCU is one 8 x 8 block
 # the spliced JPEG's height is a 16-bit field: at most this many segments in one splice
 _MAX_SEGMENTS = 65535 // _MCU_PX
 _EOI = b"\xff\xd9"
+#: A splice's rows are about this wide (px): several narrow segments side by side.
+_ROW_PX = 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -204,14 +207,17 @@ def splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytes:
     return bytes(_splice(layout, segments))
 
 
-def _splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytearray:
+def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> bytearray:
+    """:func:`splice`, ``across`` segments to a row (``len(segments)`` a multiple)."""
     seg_w, seg_h = layout.segment_px
     seg = np.asarray(segments, dtype=np.intp)
     n = len(seg)
-    if not 0 < n <= _MAX_SEGMENTS:
-        raise ParameterError("segments", f"must number 1..{_MAX_SEGMENTS}, got {n}")
+    if not 0 < n <= _MAX_SEGMENTS * across or n % across:
+        raise ParameterError(
+            "segments", f"must number 1..{_MAX_SEGMENTS * across}, {across} to a row, got {n}"
+        )
     head = bytearray(layout.header)
-    struct.pack_into(">HH", head, layout.sof_size_at, n * seg_h, seg_w)
+    struct.pack_into(">HH", head, layout.sof_size_at, n // across * seg_h, across * seg_w)
     # Runs of consecutive segments are one stretch of the scan each, their restart
     # markers in it; every segment after the first follows its marker (two bytes),
     # renumbered RST0..7 in the splice's order once the bytes are joined.
@@ -230,22 +236,60 @@ def _splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytearray:
     return out
 
 
+def _decoded(
+    layout: JpegLayout, segments: NDArray[np.intp]
+) -> Iterator[tuple[NDArray[np.intp], NDArray[np.uint8]]]:
+    """The given segments decoded, as ``(segments', pixels (rows, across, 8, 8 *
+    interval))`` per splice: each splice's rows hold ``across`` segments side by side
+    (about :data:`_ROW_PX` wide: the decoder's cost per output line, not per segment,
+    is what narrow segments one to a row pay for), the last row filled up with its
+    last segment again; ``segments'`` in the pixels' order, so padded too."""
+    seg_w, seg_h = layout.segment_px
+    segments = np.asarray(segments, dtype=np.intp)
+    across = max(1, _ROW_PX // seg_w)
+    per_splice = _MAX_SEGMENTS * across
+    for k in range(0, len(segments), per_splice):
+        part = segments[k : k + per_splice]
+        a = min(across, len(part))
+        pad = -len(part) % a
+        if pad:
+            part = np.concatenate((part, np.full(pad, part[-1], dtype=np.intp)))
+        rows = len(part) // a
+        img = _imdecode(_splice(layout, part, a))
+        if img.shape != (rows * seg_h, a * seg_w):
+            raise DecodeError(len(layout.data))
+        yield part, img.reshape(rows, seg_h, a, seg_w).transpose(0, 2, 1, 3)
+
+
 def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.uint8]:
     """The given segments (ascending raster indices) decoded, one 8-pixel row each:
     ``(8 * len(segments), 8 * interval)``. Raises :class:`~vision.errors.DecodeError`
     when they do not decode."""
     seg_w, seg_h = layout.segment_px
-    segments = np.asarray(segments, dtype=np.intp)
-    parts = []
-    for k in range(0, len(segments), _MAX_SEGMENTS):
-        part = segments[k : k + _MAX_SEGMENTS]
-        strip = _imdecode(_splice(layout, part))
-        if strip.shape != (len(part) * seg_h, seg_w):
-            raise DecodeError(len(layout.data))
-        parts.append(strip)
+    # only the last splice is padded: its extra segments are cut off the end
+    parts = [pixels.reshape(-1, seg_h, seg_w) for _, pixels in _decoded(layout, segments)]
     if not parts:
         return np.zeros((0, seg_w), np.uint8)
-    return parts[0] if len(parts) == 1 else np.vstack(parts)
+    out = parts[0] if len(parts) == 1 else np.concatenate(parts)
+    return out[: len(segments)].reshape(-1, seg_w)
+
+
+def decode_into(layout: JpegLayout, canvas: NDArray[np.uint8], segments: NDArray[np.intp]) -> None:
+    """Decode the given segments (ascending raster indices) into their place in a
+    :func:`blank_canvas` (in place; what is there already stays where no segment is
+    given). Raises :class:`~vision.errors.DecodeError` when they do not decode."""
+    grid = _grid(layout, canvas)
+    for part, pixels in _decoded(layout, segments):
+        at = part.reshape(pixels.shape[:2])
+        grid[at // layout.per_row, at % layout.per_row] = pixels
+
+
+def _grid(layout: JpegLayout, canvas: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A canvas as [segment row, segment col, row, col] (a view)."""
+    seg_w, seg_h = layout.segment_px
+    if canvas.shape != (layout.mcu_rows * seg_h, layout.per_row * seg_w):
+        raise ParameterError("canvas", f"must be the layout's blank_canvas, got {canvas.shape}")
+    return canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
 
 
 def blank_canvas(layout: JpegLayout, fill: int) -> NDArray[np.uint8]:
@@ -264,7 +308,7 @@ def paste(
     """Put decoded segments (:func:`decode_segments`) in their place in a
     :func:`blank_canvas` (in place)."""
     seg_w, seg_h = layout.segment_px
-    grid = canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
+    grid = _grid(layout, canvas)
     segments = np.asarray(segments, dtype=np.intp)
     grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
         len(segments), seg_h, seg_w
@@ -282,7 +326,7 @@ def decode_region(layout: JpegLayout, segments: NDArray[np.intp], fill: int) -> 
     """The full-size [row, col] image with the given segments decoded in place and every
     other pixel ``fill``."""
     canvas = blank_canvas(layout, fill)
-    paste(layout, canvas, segments, decode_segments(layout, segments))
+    decode_into(layout, canvas, segments)
     return image_of(layout, canvas)
 
 
@@ -317,6 +361,7 @@ __all__ = [
     "RST_INTERVAL_MCU",
     "JpegLayout",
     "blank_canvas",
+    "decode_into",
     "decode_reduced",
     "decode_region",
     "decode_segments",

@@ -42,6 +42,7 @@ from vision.frame_measurement import FrameMeasurement
 from vision.jpeg_regions import (
     JpegLayout,
     blank_canvas,
+    decode_into,
     decode_segments,
     image_of,
     jpeg_layout,
@@ -161,7 +162,7 @@ class RegionReader:
             new = np.flatnonzero(segment_hits(layout, want) & ~done)
             if new.size:
                 try:
-                    paste(layout, canvas, new, decode_segments(layout, new))
+                    decode_into(layout, canvas, new)
                 except ValueError:
                     return None
                 done[new] = True
