@@ -10,7 +10,8 @@
 2. the band the rough location follows from those two crossings (+-5 beam widths about
    their chord, outward past the tip and inward over the hub), widened by the reach of
    the edge scans; how far the band runs behind the pivot comes from the previous
-   frame's hub (the track), the whole beam length without one;
+   frame's hub (the track), the whole beam length without one, and a previous frame
+   that was smeared (the track too) widens the band by the smeared scans' reach;
 3. the measurement, on a full-size image whose other pixels are one gray level (the
    median of the circles: a constant holds no strip, so a part not decoded cannot look
    like beam or hub);
@@ -109,6 +110,9 @@ class RegionReader:
         #: The track: how far behind the pivot the previous frame's hub reached (m).
         self.hub_back_m: float | None = None
         self.hub_w_m = math.nan
+        #: The track: how much farther than the edge scans the previous frame's smeared
+        #: edges were read (m; 0 when it was not smeared).
+        self.smear_m = 0.0
         self.stats = RegionStats()
 
     # -- entry point ------------------------------------------------------------------
@@ -127,6 +131,7 @@ class RegionReader:
             image = decode(data)
         except ValueError as exc:
             self.hub_back_m = None
+            self.smear_m = 0.0
             return FrameMeasurement(ok=False, reason=f"cannot decode frame: {exc}")
         m = self.measurer.measure(image)
         self._keep_track(m)
@@ -184,7 +189,9 @@ class RegionReader:
     def _keep_track(self, m: FrameMeasurement) -> None:
         if not m.ok:
             self.hub_back_m = None
+            self.smear_m = 0.0
             return
+        self.smear_m = self._smear_reach_m() if self._smeared(m) else 0.0
         back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]
         ok = np.all(np.isfinite(back)) and math.isfinite(m.hub_width_m)
         self.hub_back_m = float(np.hypot(*back)) if ok else None
@@ -243,6 +250,12 @@ class RegionReader:
         scans = self._reach_m(w) + _OFF_CHORD_WIDTHS * w
         half_out = max(half, 0.75 * w + scans)
         half_in = max(half, 0.75 * hub_w + scans)
+        if self.smear_m > 0:
+            # the previous frame was smeared (the track): so is this one, likely; its
+            # scans about the beam reach that much farther, the beam's centre line
+            # running from the clamp, somewhere on the inward band, to the tip
+            half_out += self.smear_m
+            half_in = max(half_in, 0.75 * w + scans + self.smear_m)
         return self._tubes(
             shape,
             [
@@ -289,9 +302,8 @@ class RegionReader:
             (np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in),
         ]
         beam_r = 0.75 * wb + reach
-        if math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px:
-            # smeared: centroid cuts reach 1.5 smears + half a width + 3 px either side
-            beam_r += 1.5 * self.measurer.max_smear_px * self.measurer.px_m * 1.5
+        if self._smeared(m):
+            beam_r += self._smear_reach_m()
         tubes.append((line, beam_r))
         # the tip's searches: single lines along the tangent, up to 4 widths on
         pad = 6 * self.measurer.px_m
@@ -302,6 +314,13 @@ class RegionReader:
         faces = np.array([back - hub_w * e, clamp + hub_w * e])
         tubes.append((faces, 0.5 * hub_w + pad))
         return self._tubes(shape, tubes)
+
+    def _smeared(self, m: FrameMeasurement) -> bool:
+        return math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px
+
+    def _smear_reach_m(self) -> float:
+        # smeared: centroid cuts reach 1.5 smears + half a width + 3 px either side
+        return 1.5 * self.measurer.max_smear_px * self.measurer.px_m * 1.5
 
     def _reach_m(self, w: float) -> float:
         # px beyond the strip, in the plane, with room for perspective (1.5x the pivot's
