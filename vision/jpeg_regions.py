@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass, field
+from collections.abc import Iterator
+from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -32,7 +34,9 @@ from vision.errors import DecodeError, ParameterError
 _MCU_PX = 8  # a single-component scan's MCU is one 8 x 8 block
 # the spliced JPEG's height is a 16-bit field: at most this many segments in one splice
 _MAX_SEGMENTS = 65535 // _MCU_PX
-_RST = [bytes((0xFF, 0xD0 + k)) for k in range(8)]
+_EOI = b"\xff\xd9"
+#: A splice's rows are about this wide (px): several narrow segments side by side.
+_ROW_PX = 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,13 +56,15 @@ class JpegLayout:
     starts: NDArray[np.intp]
     ends: NDArray[np.intp]
 
-    def __post_init__(self) -> None:
-        # plain lists: a splice indexes them segment by segment
-        object.__setattr__(self, "starts_list", self.starts.tolist())
-        object.__setattr__(self, "ends_list", self.ends.tolist())
+    @cached_property
+    def starts_list(self) -> list[int]:
+        """``starts`` as a list (for callers that index it segment by segment)."""
+        return list(self.starts.tolist())
 
-    starts_list: list[int] = field(init=False, repr=False)
-    ends_list: list[int] = field(init=False, repr=False)
+    @cached_property
+    def ends_list(self) -> list[int]:
+        """``ends`` as a list."""
+        return list(self.ends.tolist())
 
     @property
     def segment_px(self) -> tuple[int, int]:
@@ -120,22 +126,25 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     # or the marker that ends the scan.
     buf = np.frombuffer(data, dtype=np.uint8)
     ff = np.flatnonzero(buf[scan_at:-1] == 0xFF) + scan_at
-    nxt = buf[ff + 1]
-    marks = ff[nxt != 0]
+    marks = ff[buf[ff + 1] != 0]
     kinds = buf[marks + 1]
-    is_rst = (kinds >= 0xD0) & (kinds <= 0xD7)
+    is_rst = (kinds & 0xF8) == 0xD0
     end_of_scan = np.flatnonzero(~is_rst)
     if end_of_scan.size == 0 or kinds[end_of_scan[0]] != 0xD9:
         return None  # the scan must end at EOI (one scan: baseline gray)
     rst = marks[: end_of_scan[0]]
     if rst.size != n_seg - 1:
         return None
-    numbers = buf[rst + 1].astype(np.intp) - 0xD0
-    if np.any(numbers != np.arange(rst.size) % 8):
+    numbers = kinds[: rst.size]  # each RSTn: 0xD0..0xD7 in turn from RST0
+    if rst.size and (numbers[0] != 0xD0 or np.any(((numbers[1:] - numbers[:-1]) & 7) != 1)):
         return None
     stop = int(marks[end_of_scan[0]])
-    starts = np.concatenate(([scan_at], rst + 2)).astype(np.intp)
-    ends = np.concatenate((rst, [stop])).astype(np.intp)
+    starts = np.empty(n_seg, dtype=np.intp)
+    starts[0] = scan_at
+    starts[1:] = rst + 2
+    ends = np.empty(n_seg, dtype=np.intp)
+    ends[:-1] = rst
+    ends[-1] = stop
     return JpegLayout(
         data=data,
         width_px=width,
@@ -166,33 +175,90 @@ def segments_covering(layout: JpegLayout, mask_px: NDArray[np.bool_]) -> NDArray
 def segments_of_blocks(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.intp]:
     """The segments (raster indices) holding any True 8 x 8 block of a [block row, block
     col] mask (``ceil(height / 8)`` x ``ceil(width / 8)``)."""
+    return np.flatnonzero(segment_hits(layout, blocks))
+
+
+def segment_hits(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Per segment (raster order), whether it holds any True block of a [block row,
+    block col] mask (``ceil(height / 8)`` x ``ceil(width / 8)``)."""
     shape = (layout.mcu_rows, layout.per_row * layout.interval)
     if blocks.shape != shape:
         raise ParameterError("blocks", f"must be {shape[0]} x {shape[1]}, got {blocks.shape}")
-    hit = blocks.reshape(layout.mcu_rows, layout.per_row, layout.interval).any(axis=2)
-    return np.flatnonzero(hit.ravel())
+    per_seg = np.ascontiguousarray(blocks, dtype=bool).reshape(shape[0] * layout.per_row, -1)
+    k = layout.interval
+    if k % 8 == 0:  # a segment's flags as 64-bit words, OR-ed column by column (numpy's
+        # reduction along a short axis costs ten times more)
+        words = per_seg.view(np.uint64)
+        acc = words[:, 0].copy()
+        for j in range(1, k // 8):
+            acc |= words[:, j]
+        return acc != 0
+    if k in _UINT_OF_BYTES:
+        return per_seg.view(_UINT_OF_BYTES[k]).ravel() != 0
+    return np.asarray(per_seg.any(axis=1))
+
+
+_UINT_OF_BYTES = {1: np.uint8, 2: np.uint16, 4: np.uint32}
 
 
 def splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytes:
     """A baseline JPEG of the given segments (ascending raster indices), one MCU row each,
     ``interval`` MCUs wide."""
+    return bytes(_splice(layout, segments))
+
+
+def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> bytearray:
+    """:func:`splice`, ``across`` segments to a row (``len(segments)`` a multiple)."""
     seg_w, seg_h = layout.segment_px
-    n = len(segments)
-    if not 0 < n <= _MAX_SEGMENTS:
-        raise ParameterError("segments", f"must number 1..{_MAX_SEGMENTS}, got {n}")
-    head = bytearray(layout.header)
-    struct.pack_into(">HH", head, layout.sof_size_at, n * seg_h, seg_w)
-    # One gather of the scan's bytes: each segment after the first with the two bytes
-    # before it (its restart marker), renumbered RST0..7 in the splice's order.
     seg = np.asarray(segments, dtype=np.intp)
-    lo = layout.starts[seg] - 2
+    n = len(seg)
+    if not 0 < n <= _MAX_SEGMENTS * across or n % across:
+        raise ParameterError(
+            "segments", f"must number 1..{_MAX_SEGMENTS * across}, {across} to a row, got {n}"
+        )
+    head = bytearray(layout.header)
+    struct.pack_into(">HH", head, layout.sof_size_at, n // across * seg_h, across * seg_w)
+    # Runs of consecutive segments are one stretch of the scan each, their restart
+    # markers in it; every segment after the first follows its marker (two bytes),
+    # renumbered RST0..7 in the splice's order once the bytes are joined.
+    brk = np.flatnonzero(seg[1:] != seg[:-1] + 1) + 1
+    lo = layout.starts[seg[np.concatenate(([0], brk))]] - 2
     lo[0] += 2
-    lens = layout.ends[seg] - lo
-    out_at = np.concatenate(([0], np.cumsum(lens)))
-    idx = np.arange(int(out_at[-1]), dtype=np.intp) + np.repeat(lo - out_at[:-1], lens)
-    body = np.frombuffer(layout.data, dtype=np.uint8)[idx]
-    body[out_at[1:-1] + 1] = 0xD0 + (np.arange(n - 1) & 7)
-    return b"".join((bytes(head), body.tobytes(), b"\xff\xd9"))
+    hi = layout.ends[seg[np.concatenate((brk - 1, [n - 1]))]]
+    scan = memoryview(layout.data)
+    out = bytearray().join(
+        [head, *[scan[a:b] for a, b in zip(lo.tolist(), hi.tolist(), strict=True)], _EOI]
+    )
+    if n > 1:
+        lens = layout.ends[seg[:-1]] - layout.starts[seg[:-1]]
+        at = len(head) + np.cumsum(lens) + 2 * np.arange(1, n) - 1
+        np.frombuffer(out, dtype=np.uint8)[at] = 0xD0 + (np.arange(n - 1) & 7)
+    return out
+
+
+def _decoded(
+    layout: JpegLayout, segments: NDArray[np.intp]
+) -> Iterator[tuple[NDArray[np.intp], NDArray[np.uint8]]]:
+    """The given segments decoded, as ``(segments', pixels (rows, across, 8, 8 *
+    interval))`` per splice: each splice's rows hold ``across`` segments side by side
+    (about :data:`_ROW_PX` wide: the decoder's cost per output line, not per segment,
+    is what narrow segments one to a row pay for), the last row filled up with its
+    last segment again; ``segments'`` in the pixels' order, so padded too."""
+    seg_w, seg_h = layout.segment_px
+    segments = np.asarray(segments, dtype=np.intp)
+    across = max(1, _ROW_PX // seg_w)
+    per_splice = _MAX_SEGMENTS * across
+    for k in range(0, len(segments), per_splice):
+        part = segments[k : k + per_splice]
+        a = min(across, len(part))
+        pad = -len(part) % a
+        if pad:
+            part = np.concatenate((part, np.full(pad, part[-1], dtype=np.intp)))
+        rows = len(part) // a
+        img = _imdecode(_splice(layout, part, a))
+        if img.shape != (rows * seg_h, a * seg_w):
+            raise DecodeError(len(layout.data))
+        yield part, img.reshape(rows, seg_h, a, seg_w).transpose(0, 2, 1, 3)
 
 
 def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.uint8]:
@@ -200,17 +266,30 @@ def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[n
     ``(8 * len(segments), 8 * interval)``. Raises :class:`~vision.errors.DecodeError`
     when they do not decode."""
     seg_w, seg_h = layout.segment_px
-    segments = np.asarray(segments, dtype=np.intp)
-    parts = []
-    for k in range(0, len(segments), _MAX_SEGMENTS):
-        part = segments[k : k + _MAX_SEGMENTS]
-        strip = _imdecode(splice(layout, part))
-        if strip.shape != (len(part) * seg_h, seg_w):
-            raise DecodeError(len(layout.data))
-        parts.append(strip)
+    # only the last splice is padded: its extra segments are cut off the end
+    parts = [pixels.reshape(-1, seg_h, seg_w) for _, pixels in _decoded(layout, segments)]
     if not parts:
         return np.zeros((0, seg_w), np.uint8)
-    return parts[0] if len(parts) == 1 else np.vstack(parts)
+    out = parts[0] if len(parts) == 1 else np.concatenate(parts)
+    return out[: len(segments)].reshape(-1, seg_w)
+
+
+def decode_into(layout: JpegLayout, canvas: NDArray[np.uint8], segments: NDArray[np.intp]) -> None:
+    """Decode the given segments (ascending raster indices) into their place in a
+    :func:`blank_canvas` (in place; what is there already stays where no segment is
+    given). Raises :class:`~vision.errors.DecodeError` when they do not decode."""
+    grid = _grid(layout, canvas)
+    for part, pixels in _decoded(layout, segments):
+        at = part.reshape(pixels.shape[:2])
+        grid[at // layout.per_row, at % layout.per_row] = pixels
+
+
+def _grid(layout: JpegLayout, canvas: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A canvas as [segment row, segment col, row, col] (a view)."""
+    seg_w, seg_h = layout.segment_px
+    if canvas.shape != (layout.mcu_rows * seg_h, layout.per_row * seg_w):
+        raise ParameterError("canvas", f"must be the layout's blank_canvas, got {canvas.shape}")
+    return canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
 
 
 def blank_canvas(layout: JpegLayout, fill: int) -> NDArray[np.uint8]:
@@ -229,7 +308,7 @@ def paste(
     """Put decoded segments (:func:`decode_segments`) in their place in a
     :func:`blank_canvas` (in place)."""
     seg_w, seg_h = layout.segment_px
-    grid = canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
+    grid = _grid(layout, canvas)
     segments = np.asarray(segments, dtype=np.intp)
     grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
         len(segments), seg_h, seg_w
@@ -247,7 +326,7 @@ def decode_region(layout: JpegLayout, segments: NDArray[np.intp], fill: int) -> 
     """The full-size [row, col] image with the given segments decoded in place and every
     other pixel ``fill``."""
     canvas = blank_canvas(layout, fill)
-    paste(layout, canvas, segments, decode_segments(layout, segments))
+    decode_into(layout, canvas, segments)
     return image_of(layout, canvas)
 
 
@@ -265,7 +344,7 @@ def decode_reduced(data: bytes, reduction: int) -> NDArray[np.uint8]:
     return _imdecode(data, flags[reduction])
 
 
-def _imdecode(data: bytes, flags: int = cv2.IMREAD_GRAYSCALE) -> NDArray[np.uint8]:
+def _imdecode(data: bytes | bytearray, flags: int = cv2.IMREAD_GRAYSCALE) -> NDArray[np.uint8]:
     buf = np.frombuffer(data, dtype=np.uint8)
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
@@ -282,12 +361,14 @@ __all__ = [
     "RST_INTERVAL_MCU",
     "JpegLayout",
     "blank_canvas",
+    "decode_into",
     "decode_reduced",
     "decode_region",
     "decode_segments",
     "image_of",
     "jpeg_layout",
     "paste",
+    "segment_hits",
     "segments_covering",
     "segments_of_blocks",
     "splice",

@@ -10,7 +10,8 @@
 2. the band the rough location follows from those two crossings (+-5 beam widths about
    their chord, outward past the tip and inward over the hub), widened by the reach of
    the edge scans; how far the band runs behind the pivot comes from the previous
-   frame's hub (the track), the whole beam length without one;
+   frame's hub (the track), the whole beam length without one, and a previous frame
+   that was smeared (the track too) widens the band by the smeared scans' reach;
 3. the measurement, on a full-size image whose other pixels are one gray level (the
    median of the circles: a constant holds no strip, so a part not decoded cannot look
    like beam or hub);
@@ -42,10 +43,12 @@ from vision.frame_measurement import FrameMeasurement
 from vision.jpeg_regions import (
     JpegLayout,
     blank_canvas,
+    decode_into,
     decode_segments,
     image_of,
     jpeg_layout,
     paste,
+    segment_hits,
     segments_of_blocks,
 )
 from vision.locate import (
@@ -103,10 +106,13 @@ class RegionReader:
         self._circles: SearchCircles = search_circles(
             cal.to_px, cal.beam_length_m, cal.beam_width_m, measurer.px_m
         )
-        self._ring_blocks: dict[tuple[int, int], NDArray[np.bool_]] = {}
+        self._ring_segs: dict[tuple[int, int, int], NDArray[np.intp]] = {}
         #: The track: how far behind the pivot the previous frame's hub reached (m).
         self.hub_back_m: float | None = None
         self.hub_w_m = math.nan
+        #: The track: how much farther than the edge scans the previous frame's smeared
+        #: edges were read (m; 0 when it was not smeared).
+        self.smear_m = 0.0
         self.stats = RegionStats()
 
     # -- entry point ------------------------------------------------------------------
@@ -125,6 +131,7 @@ class RegionReader:
             image = decode(data)
         except ValueError as exc:
             self.hub_back_m = None
+            self.smear_m = 0.0
             return FrameMeasurement(ok=False, reason=f"cannot decode frame: {exc}")
         m = self.measurer.measure(image)
         self._keep_track(m)
@@ -133,8 +140,7 @@ class RegionReader:
     # -- the parts --------------------------------------------------------------------
     def _measure_parts(self, layout: JpegLayout) -> FrameMeasurement | None:
         shape = (layout.mcu_rows, layout.per_row * layout.interval)
-        ring = self._rings(layout, shape)
-        ring_segs = segments_of_blocks(layout, ring)
+        ring_segs = self._ring_segments(layout)
         if ring_segs.size == 0:  # the circles miss the image: the measurement says why
             return None
         try:
@@ -158,10 +164,10 @@ class RegionReader:
         done[ring_segs] = True
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
-            new = np.flatnonzero(_segment_hit(layout, want) & ~done)
+            new = np.flatnonzero(segment_hits(layout, want) & ~done)
             if new.size:
                 try:
-                    paste(layout, canvas, new, decode_segments(layout, new))
+                    decode_into(layout, canvas, new)
                 except ValueError:
                     return None
                 done[new] = True
@@ -171,7 +177,7 @@ class RegionReader:
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, w0, shape)
-            if not np.any(_segment_hit(layout, read) & ~done):
+            if not np.any(segment_hits(layout, read) & ~done):
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
@@ -183,18 +189,22 @@ class RegionReader:
     def _keep_track(self, m: FrameMeasurement) -> None:
         if not m.ok:
             self.hub_back_m = None
+            self.smear_m = 0.0
             return
+        self.smear_m = self._smear_reach_m() if self._smeared(m) else 0.0
         back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]
         ok = np.all(np.isfinite(back)) and math.isfinite(m.hub_width_m)
         self.hub_back_m = float(np.hypot(*back)) if ok else None
         self.hub_w_m = float(m.hub_width_m) if ok else math.nan
 
     # -- regions ----------------------------------------------------------------------
-    def _rings(self, layout: JpegLayout, shape: tuple[int, int]) -> NDArray[np.bool_]:
-        """The blocks under the search circles (the bilinear samples' four pixels)."""
-        got = self._ring_blocks.get(shape)
+    def _ring_segments(self, layout: JpegLayout) -> NDArray[np.intp]:
+        """The segments under the search circles (the bilinear samples' four pixels)."""
+        key = (layout.width_px, layout.height_px, layout.interval)
+        got = self._ring_segs.get(key)
         if got is None:
-            got = np.zeros(shape, dtype=bool)
+            shape = (layout.mcu_rows, layout.per_row * layout.interval)
+            blocks = np.zeros(shape, dtype=bool)
             for px in self._circles.px:
                 ok = np.all(np.isfinite(px), axis=1)
                 for dx in (0, 1):
@@ -203,8 +213,10 @@ class RegionReader:
                         by = np.floor(px[ok, 1]).astype(np.intp) + dy
                         inside = (bx >= 0) & (by >= 0) & (bx < layout.width_px)
                         inside &= by < layout.height_px
-                        got[by[inside] // _BLOCK_PX, bx[inside] // _BLOCK_PX] = True
-            self._ring_blocks[shape] = got
+                        blocks[by[inside] // _BLOCK_PX, bx[inside] // _BLOCK_PX] = True
+            got = segments_of_blocks(layout, blocks)
+            got.flags.writeable = False
+            self._ring_segs[key] = got
         return got
 
     def _predicted(
@@ -238,6 +250,12 @@ class RegionReader:
         scans = self._reach_m(w) + _OFF_CHORD_WIDTHS * w
         half_out = max(half, 0.75 * w + scans)
         half_in = max(half, 0.75 * hub_w + scans)
+        if self.smear_m > 0:
+            # the previous frame was smeared (the track): so is this one, likely; its
+            # scans about the beam reach that much farther, the beam's centre line
+            # running from the clamp, somewhere on the inward band, to the tip
+            half_out += self.smear_m
+            half_in = max(half_in, 0.75 * w + scans + self.smear_m)
         return self._tubes(
             shape,
             [
@@ -284,9 +302,8 @@ class RegionReader:
             (np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in),
         ]
         beam_r = 0.75 * wb + reach
-        if math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px:
-            # smeared: centroid cuts reach 1.5 smears + half a width + 3 px either side
-            beam_r += 1.5 * self.measurer.max_smear_px * self.measurer.px_m * 1.5
+        if self._smeared(m):
+            beam_r += self._smear_reach_m()
         tubes.append((line, beam_r))
         # the tip's searches: single lines along the tangent, up to 4 widths on
         pad = 6 * self.measurer.px_m
@@ -297,6 +314,13 @@ class RegionReader:
         faces = np.array([back - hub_w * e, clamp + hub_w * e])
         tubes.append((faces, 0.5 * hub_w + pad))
         return self._tubes(shape, tubes)
+
+    def _smeared(self, m: FrameMeasurement) -> bool:
+        return math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px
+
+    def _smear_reach_m(self) -> float:
+        # smeared: centroid cuts reach 1.5 smears + half a width + 3 px either side
+        return 1.5 * self.measurer.max_smear_px * self.measurer.px_m * 1.5
 
     def _reach_m(self, w: float) -> float:
         # px beyond the strip, in the plane, with room for perspective (1.5x the pivot's
@@ -309,50 +333,80 @@ class RegionReader:
         """The blocks within ``half_m`` (plane) of polylines ``(line (K, 2) plane m,
         half_m)``, each line's ends extended by its ``half_m``, and a block more all
         round; everything when a line reaches behind the camera."""
-        dense, halves = [], []
+        centres, tangents, halves, counts = [], [], [], []
         for line_m, half_m in tubes:
-            line = np.asarray(line_m, dtype=np.float64)
-            line = line[np.all(np.isfinite(line), axis=1)]
-            if len(line) < 2:
-                continue
-            # dense along the line: straight in the plane is curved in the image
-            s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))))
-            if s[-1] <= 0:
-                continue
-            sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
-            pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
-            # np.gradient's differences (unit spacing), without its generic overhead
-            t = np.empty_like(pts)
-            t[1:-1] = (pts[2:] - pts[:-2]) / 2.0
-            t[0], t[-1] = pts[1] - pts[0], pts[-1] - pts[-2]
-            t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
-            pts[0] -= half_m * t[0]
-            pts[-1] += half_m * t[-1]
-            nrm = np.column_stack([-t[:, 1], t[:, 0]])
-            dense.append(np.vstack([pts, pts + half_m * nrm, pts - half_m * nrm]))
-            halves.append(len(pts))
+            got = _dense_line(np.asarray(line_m, dtype=np.float64), half_m)
+            if got is not None:
+                centres.append(got[0])
+                tangents.append(got[1])
+                halves.append(half_m)
+                counts.append(len(got[0]))
         mask = np.zeros(shape, dtype=np.uint8)
-        if not dense:
-            return mask.astype(bool)
-        px_all = self.measurer.calibration.to_px(np.vstack(dense))
+        if not centres:
+            return mask.view(bool)
+        # every tube's centre line, its ends extended, and its two sides, in one mapping
+        pts = np.concatenate(centres) if len(centres) > 1 else centres[0]
+        t = np.concatenate(tangents) if len(tangents) > 1 else tangents[0]
+        n = np.array(counts)
+        first = np.cumsum(n) - n
+        last = first + n - 1
+        h = np.repeat(np.array(halves, dtype=np.float64), n)[:, None]
+        pts[first] -= h[first] * t[first]
+        pts[last] += h[last] * t[last]
+        off = h * t[:, ::-1]
+        off[:, 0] = -off[:, 0]  # the normal (-t_y, t_x), half_m long
+        k = len(pts)
+        px_all = self.measurer.calibration.to_px(np.concatenate((pts, pts + off, pts - off)))
         if not np.all(np.isfinite(px_all)):
             return np.ones(shape, dtype=bool)
-        i = 0
-        for k in halves:
-            centre, side_a, side_b = (
-                px_all[i : i + k],
-                px_all[i + k : i + 2 * k],
-                px_all[i + 2 * k : i + 3 * k],
-            )
-            i += 3 * k
-            half_px = float(
-                max(np.hypot(*(side_a - centre).T).max(), np.hypot(*(side_b - centre).T).max())
-            )
+        centre = px_all[:k]
+        side = np.maximum(
+            np.hypot(*(px_all[k : 2 * k] - centre).T), np.hypot(*(px_all[2 * k :] - centre).T)
+        )
+        half_px = np.maximum.reduceat(side, first).tolist()
+        blk = np.clip(centre / _BLOCK_PX * 16.0, -(2**27), 2**27).round().astype(np.int32)
+        for i0, m, hp in zip(first.tolist(), counts, half_px, strict=True):
             # a thick polyline (round ends and joins) in blocks, a block of slack all round
-            thick = min(2 * math.ceil(half_px / _BLOCK_PX) + 3, 32767)
-            blk = np.clip(centre / _BLOCK_PX * 16.0, -(2**27), 2**27).round().astype(np.int32)
-            cv2.polylines(mask, [blk.reshape(-1, 1, 2)], False, 1, thickness=thick, shift=4)
+            thick = min(2 * math.ceil(hp / _BLOCK_PX) + 3, 32767)
+            cv2.polylines(mask, [blk[i0 : i0 + m].reshape(-1, 1, 2)], False, 1, thick, shift=4)
         return mask.view(bool)  # 0 and 1
+
+
+def _dense_line(
+    line: NDArray[np.float64], half_m: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """Points along a polyline (K, 2), ``half_m / 2`` apart or closer (straight in the
+    plane is curved in the image), and the unit tangents there; None for a line of no
+    length (its non-finite points dropped)."""
+    if not np.isfinite(line).all():
+        line = line[np.all(np.isfinite(line), axis=1)]
+    if len(line) < 2:
+        return None
+    if len(line) == 2:
+        (x0, y0), (x1, y1) = line.tolist()
+        length = math.hypot(x1 - x0, y1 - y0)
+        if not length > 0:
+            return None
+        n = max(2, int(length / (0.5 * half_m)) + 2)
+        u = np.arange(n, dtype=np.float64) / (n - 1)
+        pts = np.empty((n, 2))
+        pts[:, 0] = x0 + u * (x1 - x0)
+        pts[:, 1] = y0 + u * (y1 - y0)
+        pts[-1] = x1, y1
+        t = np.empty((n, 2))
+        t[:] = (x1 - x0) / length, (y1 - y0) / length
+        return pts, t
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))))
+    if not s[-1] > 0:
+        return None
+    sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
+    pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
+    # np.gradient's differences (unit spacing), without its generic overhead
+    t = np.empty_like(pts)
+    t[1:-1] = (pts[2:] - pts[:-2]) / 2.0
+    t[0], t[-1] = pts[1] - pts[0], pts[-1] - pts[-2]
+    t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
+    return pts, t
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -362,15 +416,13 @@ def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def _median_u8(values: NDArray[np.uint8]) -> float:
     """``np.median`` of 8-bit values, from their histogram (a partition of tens of
-    thousands of values costs several times more)."""
-    cum = np.cumsum(np.bincount(values.ravel(), minlength=256))
+    thousands of values costs several times more; OpenCV's histogram a third of
+    numpy's, its float32 counts exact below 2**24 values)."""
+    if values.size < 1 << 24:
+        hist = cv2.calcHist([values], [0], None, [256], [0, 256]).ravel().astype(np.int64)
+    else:
+        hist = np.bincount(values.ravel(), minlength=256)
+    cum = np.cumsum(hist)
     n = int(cum[-1])
     lo, hi = np.searchsorted(cum, [(n - 1) // 2, n // 2], side="right")
     return 0.5 * (float(lo) + float(hi))
-
-
-def _segment_hit(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """Per segment (raster order), whether it holds any True block of a [block row,
-    block col] mask."""
-    per_seg = blocks.reshape(layout.mcu_rows * layout.per_row, layout.interval)
-    return np.asarray(per_seg.any(axis=1))

@@ -17,7 +17,9 @@ from vision.jpeg_regions import (
     decode_segments,
     jpeg_layout,
     paste,
+    segment_hits,
     segments_covering,
+    segments_of_blocks,
     splice,
 )
 
@@ -71,6 +73,56 @@ def test_spliced_segments_decode_to_the_full_decodes_pixels(
     # every segment: the whole image
     everything = decode_region(layout, np.arange(len(layout.starts)), fill=0)
     np.testing.assert_array_equal(everything, full)
+
+
+@pytest.mark.parametrize("interval", [1, 2, 3, 4, 8, 16, 24])
+def test_segment_hits_are_the_segments_holding_a_block(interval: int) -> None:
+    """Every interval (the word-wise paths for 1, 2, 4 and multiples of 8 MCUs, the
+    general one otherwise), from a mask in any memory order: a segment is hit exactly
+    when one of its blocks is set."""
+    w = 8 * interval * 3
+    data = encode(_scene(40, w, seed=interval), "jpeg", 80, restart_interval_mcu=interval)
+    layout = jpeg_layout(data)
+    assert layout is not None and layout.per_row == 3
+    rng = np.random.default_rng(interval)
+    for density in (0.0, 0.02, 0.3, 1.0):
+        blocks = rng.random((5, 3 * interval)) < density
+        expected = [
+            bool(blocks[r, c * interval : (c + 1) * interval].any())
+            for r in range(5)
+            for c in range(3)
+        ]
+        for mask in (blocks, np.asfortranarray(blocks), blocks.astype(np.uint8)):
+            assert segment_hits(layout, mask).tolist() == expected
+        np.testing.assert_array_equal(segments_of_blocks(layout, blocks), np.flatnonzero(expected))
+    with pytest.raises(ValueError, match="blocks"):
+        segment_hits(layout, np.zeros((5, 2), dtype=bool))
+
+
+@pytest.mark.parametrize("interval", [1, 4, 16])
+def test_segments_decoded_side_by_side_and_in_several_splices(monkeypatch, interval) -> None:
+    """Segments narrower than a splice's row are decoded several to a row (the last row
+    filled up with a repeat); a splice taller than a JPEG may be (here: 2 rows) is split
+    in several. The pixels are the full decode's, in the segments' order."""
+    import vision.jpeg_regions as jr
+
+    h, w = 72, 8 * interval * 5
+    img = _scene(h, w, seed=interval)
+    data = encode(img, "jpeg", 85, restart_interval_mcu=interval)
+    full = decode(data)
+    layout = jpeg_layout(data)
+    assert layout is not None
+    monkeypatch.setattr(jr, "_MAX_SEGMENTS", 2)
+    monkeypatch.setattr(jr, "_ROW_PX", 8 * interval * 3)  # 3 segments to a row
+    rng = np.random.default_rng(interval)
+    for n in (1, 2, 5, 6, 7, 13, len(layout.starts)):
+        segs = np.sort(rng.choice(len(layout.starts), size=n, replace=False))
+        strip = decode_segments(layout, segs).reshape(n, 8, 8 * interval)
+        for k, s in enumerate(segs.tolist()):
+            r, c = divmod(s, layout.per_row)
+            want = full[8 * r : 8 * r + 8, 8 * interval * c : 8 * interval * (c + 1)]
+            np.testing.assert_array_equal(strip[k], want)
+    np.testing.assert_array_equal(decode_region(layout, np.arange(len(layout.starts)), 0), full)
 
 
 def test_other_decoders_read_our_jpegs() -> None:

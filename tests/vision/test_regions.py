@@ -72,6 +72,20 @@ def test_parts_measure_as_the_whole_frame(scene) -> None:
     assert max(reader.stats.decoded_fraction) < 0.6
 
 
+@pytest.mark.parametrize("interval", [4, 5, 8, 40])
+def test_other_restart_intervals_measure_as_the_whole_frame(scene, interval: int) -> None:
+    """A camera writing another restart interval (segments of 4, 5, 8 or 40 MCUs of the
+    160 in a row): measured from its parts, as from the whole frame."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    data = encode(frames[3], "jpeg", 85, restart_interval_mcu=interval)
+    got = reader.measure(data)
+    assert got.ok, got.reason
+    _same(got, measurer.measure(decode(data)))
+    assert reader.stats.parts == 1
+
+
 def test_a_region_read_beyond_what_was_decoded_is_decoded_and_measured_again(scene) -> None:
     """A track that says the hub ends at the pivot (it reaches 0.59 m behind it): the
     first decode cuts the hub short, the check finds the measurement read past it, the
@@ -104,6 +118,41 @@ def test_a_lost_track_is_found_again(scene) -> None:
         if not got.ok:
             assert reader.hub_back_m is None  # lost
     assert kinds == [("parts", True), ("whole", False), ("parts", True), ("parts", True)]
+
+
+@pytest.mark.slow
+def test_a_smeared_frame_tracked_is_decoded_wide_enough_at_once(vt) -> None:
+    """A smeared frame (the tip crossing 20 mm in the exposure: the beam's light read up
+    to 1.5 smears either side of its centre line) without a track: the first decode
+    misses that reach, the rest is decoded and the frame measured again. Next, the
+    track saying the last frame was smeared, it is measured at once; a frame without a
+    beam loses that track, and the smeared frame regrows again. Every result as from
+    the whole frame."""
+    from vision.synthetic.scene import BeamMotion, BeamPose
+
+    pose = CameraPoseConfig(tilt_rad=math.radians(14.0), tilt_azimuth_rad=math.radians(160.0))
+    spec = vt.make_spec(pose=pose, noise_dn=2.0, seed=33, background_dn=35.0)
+    beam = BeamPose.from_load(math.radians(283), vt.L_M, lambda s: 1.0 + 0.3 * s / vt.L_M, 0.025)
+    x = beam.stations_m / vt.L_M
+    motion = BeamMotion(beam, 1.8, x**2 * (6 - 4 * x + x**2) / 3)
+    exposure = 0.020 / motion.tip_speed_m_s(0.008)
+    frame = render_frame(spec, motion.exposure_poses(exposure, 0.008))
+    measurer = Measurer(vt.truth_calibration(frame.truth))
+    reader = RegionReader(measurer)
+    smeared = encode(frame.image, "jpeg", 90)
+    rng = np.random.default_rng(3)
+    empty = np.clip(35 + rng.normal(0, 2, frame.image.shape), 0, 255).astype(np.uint8)
+    regrown, tracked = [], []
+    for data in (smeared, smeared, encode(empty, "jpeg", 90), smeared):
+        got = reader.measure(data)
+        _same(got, measurer.measure(decode(data)))
+        assert got.ok == (data is smeared), got.reason
+        assert not got.ok or got.blur_px > measurer.max_blur_px  # smeared
+        regrown.append(reader.stats.regrown)
+        tracked.append(reader.smear_m > 0)
+    assert regrown == [1, 1, 1, 2]
+    assert tracked == [True, True, False, True]
+    assert (reader.stats.parts, reader.stats.whole) == (3, 1)
 
 
 def test_frames_that_cannot_be_split_are_decoded_whole(scene) -> None:
