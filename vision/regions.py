@@ -130,8 +130,7 @@ class RegionReader:
         try:
             image = decode(data)
         except ValueError as exc:
-            self.hub_back_m = None
-            self.smear_m = 0.0
+            self.lose_track()
             return FrameMeasurement(ok=False, reason=f"cannot decode frame: {exc}")
         m = self.measurer.measure(image)
         self._keep_track(m)
@@ -186,10 +185,16 @@ class RegionReader:
             want = read | self._predicted(p1, p2, w0, shape, behind_m=self._length)
         return None
 
+    def lose_track(self) -> None:
+        """Forget the previous frame: the next is searched as the first of a run (a frame
+        that is not the next of the same view, e.g. a set of independent poses)."""
+        self.hub_back_m = None
+        self.hub_w_m = math.nan
+        self.smear_m = 0.0
+
     def _keep_track(self, m: FrameMeasurement) -> None:
         if not m.ok:
-            self.hub_back_m = None
-            self.smear_m = 0.0
+            self.lose_track()
             return
         self.smear_m = self._smear_reach_m() if self._smeared(m) else 0.0
         back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]

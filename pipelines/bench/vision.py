@@ -37,7 +37,9 @@ the capture writes it (:func:`vision.codec.encode`, quality 90, restart markers)
 chain decoding it whole, the default method through :class:`vision.regions.RegionReader`
 (only the segments it measures; the same result as from the whole JPEG, which the table
 checks: its last column is the largest difference in the hub angle and the tip over the
-set). Its errors are those of the JPEG frames.
+set), every frame without a track (the set's poses are independent: each is read as a
+run's first frame, not helped by its own previous pass). Its errors are those of the JPEG
+frames.
 Per-frame errors use the calibration from the true registration corners (the per-frame
 chain alone); the last lines give the automatic registration detection's corner error,
 what measuring with the detected registration instead of the true one changes, and the
@@ -435,7 +437,14 @@ def _time_decoded(
     papers = {k: Measurer(c, method="paper") for k, c in cals.items()}
 
     def default() -> list[FrameMeasurement]:
-        return [readers[id(f.calibration)].measure(j) for f, j in zip(frames, jpegs, strict=True)]
+        out = []
+        for f, j in zip(frames, jpegs, strict=True):
+            reader = readers[id(f.calibration)]
+            # independent poses: no track from the previous frame (nor from this frame's
+            # own previous pass), as the first frame of a run is read
+            reader.lose_track()
+            out.append(reader.measure(j))
+        return out
 
     def paper() -> list[FrameMeasurement]:
         return [

@@ -153,6 +153,12 @@ def test_a_smeared_frame_tracked_is_decoded_wide_enough_at_once(vt) -> None:
     assert regrown == [1, 1, 1, 2]
     assert tracked == [True, True, False, True]
     assert (reader.stats.parts, reader.stats.whole) == (3, 1)
+    # told the next frame is not the next of the view (bench vision's independent poses),
+    # the reader forgets the track: the smeared frame regrows as a run's first does
+    reader.lose_track()
+    assert reader.smear_m == 0 and reader.hub_back_m is None
+    _same(reader.measure(smeared), measurer.measure(decode(smeared)))
+    assert reader.stats.regrown == 3
 
 
 def test_frames_that_cannot_be_split_are_decoded_whole(scene) -> None:
