@@ -542,29 +542,14 @@ def _group_scales(
     sig: NDArray[np.float64],
 ) -> None:
     """Each group's robust scale of the residuals ``r`` (its ``keep`` points; None: all),
-    ``1.4826 median |r| + 1e-12`` (1 for a group with none), written into ``sig``.
-
-    :func:`vision.sampling.median`'s values: the same partition of the same numbers, on
-    the fresh ``|r|`` in place (no copy); with a NaN residual, that function itself."""
-    finite = not np.isnan(r).any()
+    ``1.4826 median |r| + 1e-12`` (1 for a group with none), written into ``sig``; each
+    median partitions the fresh ``|r|`` in place (no copy)."""
     for g in groups:
         rg = r[g] if keep is None else r[g][keep[g]]
-        n = len(rg)
-        if not n:
-            sig[g] = 1.0
-            continue
-        if finite:
-            a = np.abs(rg)
-            k = n // 2
-            if n % 2:
-                a.partition(k)
-                med = float(a[k])
-            else:
-                a.partition([k - 1, k])
-                med = float(0.5 * (a[k - 1] + a[k]))
+        if len(rg):
+            sig[g] = 1.4826 * median(np.abs(rg), overwrite_input=True) + 1e-12
         else:
-            med = median(np.abs(rg))
-        sig[g] = 1.4826 * med + 1e-12
+            sig[g] = 1.0
 
 
 #: Trapezoid samples along the centre line for arc lengths: the rule's error,

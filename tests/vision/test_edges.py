@@ -137,6 +137,14 @@ def test_median_is_numpys() -> None:
     # Infinities are values like any other.
     for x in ([-np.inf, 0.0, np.inf], [-np.inf, 1.0, 2.0, np.inf], [3.0, np.inf]):
         assert median(np.array(x)) == float(np.median(x))
+    # overwrite_input: the same value, the caller's array partitioned instead of a copy
+    for n in (10, 11):
+        x = rng.normal(size=n)
+        kept, work = x.copy(), x.copy()
+        assert median(work, overwrite_input=True) == median(kept) == float(np.median(x))
+        np.testing.assert_array_equal(kept, x)
+        np.testing.assert_array_equal(np.sort(work), np.sort(x))
+        assert not np.array_equal(work, x)  # partitioned in place
 
 
 def test_bilinear_interpolates_and_is_nan_off_the_image() -> None:
