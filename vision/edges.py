@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.sampling import median
+from vision.sampling import median, unit_step_gradient
 
 _INT16_MIN = np.int16(np.iinfo(np.int16).min)
 #: The profiles' padding above their first sample (and its negation below the last).
@@ -172,12 +172,8 @@ def _scan_lines(
     if lines.size < 2:
         return None
     yc = np.interp(lines, x, y)
-    # d yc / d line (lines one apart): central differences, one-sided at the ends (what
-    # np.gradient does for unit spacing, without its generic overhead).
-    slope = np.zeros_like(yc)
-    if lines.size > 2:
-        slope[1:-1] = (yc[2:] - yc[:-2]) / 2.0
-        slope[0], slope[-1] = yc[1] - yc[0], yc[-1] - yc[-2]
+    # d yc / d line (lines one apart; two lines: taken as level)
+    slope = unit_step_gradient(yc) if lines.size > 2 else np.zeros_like(yc)
     half = np.interp(lines, x, hw) * np.sqrt(1.0 + slope**2)
     reach = int(np.ceil(np.max(half))) + margin_px + max_window
     top = np.round(yc).astype(np.intp) - reach

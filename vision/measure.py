@@ -49,7 +49,7 @@ from vision.frame_measurement import FrameMeasurement
 from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import bilinear, median
+from vision.sampling import bilinear, median, unit_step_gradient
 
 log = logging.getLogger(__name__)
 
@@ -528,11 +528,8 @@ class Measurer:
         lines, offsets = [], []
         for line_m, half_m in strips:
             # Half width in pixels across the strip, point by point (perspective
-            # foreshortens across and along differently). The tangent by central
-            # differences, one-sided at the ends (np.gradient's, without its overhead).
-            t = np.empty_like(line_m)
-            t[1:-1] = (line_m[2:] - line_m[:-2]) / 2.0
-            t[0], t[-1] = line_m[1] - line_m[0], line_m[-1] - line_m[-2]
+            # foreshortens across and along differently).
+            t = unit_step_gradient(line_m)
             t /= np.hypot(t[:, 0], t[:, 1])[:, None]
             lines.append(line_m)
             offsets.append(line_m + half_m * np.column_stack([-t[:, 1], t[:, 0]]))

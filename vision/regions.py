@@ -60,6 +60,7 @@ from vision.locate import (
     working_width,
 )
 from vision.measure import Measurer
+from vision.sampling import unit_step_gradient
 
 _BLOCK_PX = 8
 #: Reach of the edge scans beyond a strip's half width (px): the scan's margin, the
@@ -406,10 +407,7 @@ def _dense_line(
         return None
     sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
     pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
-    # np.gradient's differences (unit spacing), without its generic overhead
-    t = np.empty_like(pts)
-    t[1:-1] = (pts[2:] - pts[:-2]) / 2.0
-    t[0], t[-1] = pts[1] - pts[0], pts[-1] - pts[-2]
+    t = unit_step_gradient(pts)
     t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
     return pts, t
 
