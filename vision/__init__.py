@@ -1,10 +1,11 @@
 """beambench vision: from camera frames to hub angle, tip deflection and the beam's
-centre line, and the synthetic camera that draws such frames. numpy/scipy/OpenCV only;
+centre line, and the synthetic camera that draws such frames. numpy/scipy/OpenCV (and numba's
+compiled kernels, ``jit``) only;
 imports neither ``sim``, ``daq`` nor ``pipelines``.
 
 Modules, roughly in the order of the data flow:
 
-- ``errors``: the exception tree (root :class:`VisionError`).
+- ``errors``: the exception tree (root :class:`VisionError`); ``jit``: numba's compiled kernels.
 - ``config``: camera, camera pose and registration-object settings (frozen dataclasses).
 - ``camera``: pinhole model, the camera matrix, lens distortion, checkerboard calibration.
 - ``homography``: plane-to-plane collineations (the paper's 4-point one, DLT, from lines).
