@@ -10,28 +10,69 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.errors import ParameterError
+from vision.jit import kernel
 
 
 def median(x: NDArray[np.float64], overwrite_input: bool = False) -> float:
-    """``np.median`` of a 1-D array (NaN if it holds one) by partition, without the
+    """``np.median`` of a 1-D array (NaN if it holds one) by selection, without the
     generic machinery that makes ``np.median`` several times slower on the small arrays
     a frame's measurement takes many medians of. ``overwrite_input``: partition ``x``
     itself (a float64 array the caller no longer needs) instead of a copy."""
     a = np.asarray(x, dtype=np.float64).ravel()
+    return float(_median(a, overwrite_input))
+
+
+@kernel
+def _median(a: NDArray[np.float64], overwrite: bool) -> float:
+    """:func:`median` of the contiguous ``a`` (selected in place with ``overwrite``):
+    the middle order statistic, or the mean of the two (``0.5 * (lo + hi)``, numpy's)."""
     n = a.size
     if n == 0:
         return math.nan
-    top = a.max()  # NaN if a value is: one reduction, not a mask
-    if top != top:
-        return math.nan
+    for i in range(n):
+        if a[i] != a[i]:
+            return math.nan
+    w = a if overwrite else a.copy()
     k = n // 2
-    # the ndarray method: np.partition's wrapper costs more than the work
-    part = a if overwrite_input else a.copy()
+    _select(w, k)
     if n % 2:
-        part.partition(k)
-        return float(part[k])
-    part.partition((k - 1, k))
-    return float(0.5 * (part[k - 1] + part[k]))
+        return w[k]
+    lo = w[0]
+    for i in range(1, k):
+        if w[i] > lo:
+            lo = w[i]
+    return 0.5 * (lo + w[k])
+
+
+@kernel
+def _select(w: NDArray[np.float64], k: int) -> None:
+    """Partition ``w`` (no NaN) about its ``k``-th smallest value, in place: ``w[k]`` is
+    that value, none before it is larger, none after it smaller (Hoare's quickselect,
+    median-of-three pivot)."""
+    lo, hi = 0, w.size - 1
+    while hi > lo:
+        a, b, c = w[lo], w[(lo + hi) >> 1], w[hi]
+        if a > b:
+            a, b = b, a
+        if b > c:
+            b = c
+        pivot = a if a > b else b
+        i, j = lo, hi
+        while i <= j:
+            while w[i] < pivot:
+                i += 1
+            while w[j] > pivot:
+                j -= 1
+            if i <= j:
+                w[i], w[j] = w[j], w[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            return
 
 
 def unit_step_gradient(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -46,53 +87,48 @@ def unit_step_gradient(x: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
     """Bilinear samples of a [row, col] image at points (N, 2) (x, y); NaN off the image."""
-    return BilinearPlan.at(image.shape, xy).sample(image)
+    xy = np.asarray(xy, dtype=np.float64)
+    out = _bilinear(np.ascontiguousarray(image), np.ascontiguousarray(xy).reshape(-1, 2))
+    return out.reshape(xy.shape[:-1])
+
+
+@kernel
+def _bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`bilinear` of points (N, 2): the cell's corner at the truncated point (one
+    cell in from the last row and column), interpolated along x on its top and bottom
+    rows, then along y between them."""
+    h, w = image.shape
+    out = np.empty(xy.shape[0])
+    for i in range(xy.shape[0]):
+        x, y = xy[i, 0], xy[i, 1]
+        if not (x >= 0 and y >= 0 and x <= w - 1 and y <= h - 1):  # NaN fails too
+            out[i] = math.nan
+            continue
+        # Non-negative here, so truncation is the floor.
+        x0, y0 = min(int(x), w - 2), min(int(y), h - 2)
+        fx, fy = x - x0, y - y0
+        v00, v10 = float(image[y0, x0]), float(image[y0 + 1, x0])
+        top = v00 + fx * (image[y0, x0 + 1] - v00)
+        bottom = v10 + fx * (image[y0 + 1, x0 + 1] - v10)
+        out[i] = top + fy * (bottom - top)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
 class BilinearPlan:
-    """:func:`bilinear` at fixed points for images of one shape: the four gather indices
-    and the weights, made once (points searched in every frame of a camera placement)."""
+    """:func:`bilinear` at fixed points for images of one shape (points searched in
+    every frame of a camera placement): the points, made contiguous once."""
 
     shape: tuple[int, ...]
-    idx: tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]
-    fx: NDArray[np.float64]
-    fy: NDArray[np.float64]
-    ok: NDArray[np.bool_] | None  # None: every point inside
+    xy: NDArray[np.float64]  # (N, 2) contiguous
 
     @classmethod
     def at(cls, shape: tuple[int, ...], xy: NDArray[np.float64]) -> BilinearPlan:
-        h, w = shape
-        x = xy[..., 0]
-        y = xy[..., 1]
-        # Four reductions decide the common case (every point inside; NaN fails them
-        # too) without the element-wise mask.
-        inside = bool(
-            x.size and x.min() >= 0 and y.min() >= 0 and x.max() <= w - 1 and y.max() <= h - 1
-        )
-        if inside:
-            xc, yc, ok = x, y, None
-        else:
-            ok = (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
-            xc = np.where(ok, x, 0.0)
-            yc = np.where(ok, y, 0.0)
-        # Non-negative here, so truncation is the floor.
-        x0 = np.minimum(xc.astype(np.intp), w - 2)
-        y0 = np.minimum(yc.astype(np.intp), h - 2)
-        i = y0 * w + x0  # gathers from the flat image: cheaper than 2-D fancy indexing
-        return cls(tuple(shape), (i, i + 1, i + w, i + (w + 1)), xc - x0, yc - y0, ok)
+        return cls(tuple(shape), np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2))
 
     def sample(self, image: NDArray[np.uint8]) -> NDArray[np.float64]:
         if image.shape != self.shape:
             raise ParameterError(
                 "image", f"must have the plan's shape {self.shape}, got {image.shape}"
             )
-        flat = image.ravel()
-        i00, i01, i10, i11 = self.idx
-        fx, fy = self.fx, self.fy
-        v00 = flat[i00]
-        v10 = flat[i10]
-        top = v00 + fx * (flat[i01] - v00.astype(np.float64))
-        bottom = v10 + fx * (flat[i11] - v10.astype(np.float64))
-        v = top + fy * (bottom - top)
-        return np.asarray(v) if self.ok is None else np.where(self.ok, v, np.nan)
+        return _bilinear(np.ascontiguousarray(image), self.xy)

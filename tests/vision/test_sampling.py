@@ -1,0 +1,69 @@
+"""The sampling kernels (vision/sampling.py) against the numpy definitions they replace:
+equal to the last bit (the same arithmetic in the same order; a median is an order
+statistic, or numpy's mean of two)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from vision.errors import ParameterError
+from vision.sampling import BilinearPlan, bilinear, median
+
+
+def _bilinear_numpy(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The numpy form the kernel replaced: flat gathers, NaN off the image."""
+    h, w = image.shape
+    x, y = xy[..., 0], xy[..., 1]
+    ok = (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
+    xc, yc = np.where(ok, x, 0.0), np.where(ok, y, 0.0)
+    x0 = np.minimum(xc.astype(np.intp), w - 2)
+    y0 = np.minimum(yc.astype(np.intp), h - 2)
+    i = y0 * w + x0
+    flat = image.ravel()
+    fx, fy = xc - x0, yc - y0
+    v00, v10 = flat[i], flat[i + w]
+    top = v00 + fx * (flat[i + 1] - v00.astype(np.float64))
+    bottom = v10 + fx * (flat[i + w + 1] - v10.astype(np.float64))
+    return np.where(ok, top + fy * (bottom - top), np.nan)
+
+
+def test_bilinear_is_the_numpy_form_bit_for_bit() -> None:
+    rng = np.random.default_rng(11)
+    for h, w in ((2, 2), (7, 13), (1536, 2048)):
+        img = rng.integers(0, 256, size=(h, w), dtype=np.uint8)
+        xy = np.column_stack([rng.uniform(-2, w + 1, 4000), rng.uniform(-2, h + 1, 4000)])
+        # the last row and column, the corners, NaN and infinities
+        xy[:6] = [[w - 1, h - 1], [0, 0], [w - 1, 0.5], [0.5, h - 1], [np.nan, 1], [1, -np.inf]]
+        want = _bilinear_numpy(img, xy)
+        got = bilinear(img, xy)
+        np.testing.assert_array_equal(got, want)
+        assert np.isnan(got[4:6]).all() and np.isfinite(got[:4]).all()
+        # a grid of points (..., 2) keeps its shape; a view of the image samples the same
+        np.testing.assert_array_equal(bilinear(img, xy.reshape(2, -1, 2)), want.reshape(2, -1))
+        np.testing.assert_array_equal(bilinear(np.asfortranarray(img), xy), want)
+        plan = BilinearPlan.at(img.shape, xy)
+        np.testing.assert_array_equal(plan.sample(img), want)
+    assert bilinear(img, np.zeros((0, 2))).shape == (0,)
+    with pytest.raises(ParameterError):
+        plan.sample(img[:-1])
+
+
+def test_median_selects_numpys_value_on_ties_and_every_size() -> None:
+    rng = np.random.default_rng(12)
+    for n in [*range(1, 40), 101, 1000, 4001]:
+        for x in (rng.normal(size=n), rng.integers(0, 4, size=n).astype(float), np.ones(n)):
+            assert median(x) == float(np.median(x))
+            work = x.copy()
+            assert median(work, overwrite_input=True) == float(np.median(x))
+            np.testing.assert_array_equal(np.sort(work), np.sort(x))  # a permutation
+    # sorted and reversed input (a quickselect's worst orders), a NaN anywhere
+    x = np.arange(1000.0)
+    assert median(x) == median(x[::-1]) == 499.5
+    for i in (0, 5, 999):
+        y = x.copy()
+        y[i] = np.nan
+        assert np.isnan(median(y))
+    # integers and 2-D input are taken as float64, flattened
+    assert median(np.array([[3, 1], [2, 4]])) == 2.5
