@@ -24,7 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.errors import FrameFailure
-from vision.sampling import BilinearPlan, bilinear, median
+from vision.jit import kernel
+from vision.sampling import BilinearPlan, _median, _select, bilinear, median
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -122,81 +123,124 @@ def find_strip(
     With ``near``, the maximum is taken within ``near`` of ``expect`` (brighter objects
     elsewhere in the profile then do not hide a dimmer strip). ``levels``: the profile's
     (:func:`profile_levels`), when already known (a finite profile only)."""
-    n = len(values)
-    if levels is not None:
-        v = values
-        lo, hi = levels
+    v = np.ascontiguousarray(values, dtype=np.float64)
+    offs = np.ascontiguousarray(offsets, dtype=np.float64)
+    step = float(offs[1] - offs[0])
+    wide = math.nan if near is None else near
+    if levels is None:
+        found, c, w, contrast = _find_strip(v, offs, step, expect, wide)
     else:
-        ok = np.isfinite(values)
-        if ok.sum() < 0.7 * n:
-            return None
-        v = np.where(ok, values, np.nanmedian(values)) if not ok.all() else values
-        lo, hi = (float(x) for x in profile_levels(v[None, :])[0])
-    return _strip(v, offsets, float(offsets[1] - offsets[0]), expect, near, lo, hi)
+        found, c, w, contrast = _strip(v, offs, step, expect, wide, levels[0], levels[1])
+    return Strip(c, w, contrast) if found else None
 
 
-#: ``np.maximum.reduce``: a slice's maximum without ``ndarray.max``'s wrapper.
-_max = np.maximum.reduce
+@kernel
+def _find_strip(
+    v: NDArray[np.float64], offs: NDArray[np.float64], step: float, expect: float, near: float
+) -> tuple[bool, float, float, float]:
+    """:func:`find_strip` without levels: a profile at least 70 % on the image, NaN
+    samples set to the others' median, its levels its own (:func:`_levels`)."""
+    n = v.size
+    finite = 0
+    for i in range(n):
+        if math.isfinite(v[i]):
+            finite += 1
+    if finite < 0.7 * n:
+        return False, math.nan, math.nan, math.nan
+    if finite < n:
+        kept = np.empty(finite)
+        j = 0
+        for i in range(n):
+            if math.isfinite(v[i]):
+                kept[j] = v[i]
+                j += 1
+        fill = _median(kept, True)
+        v = v.copy()
+        for i in range(n):
+            if not math.isfinite(v[i]):
+                v[i] = fill
+    lo, hi = _levels(v)
+    return _strip(v, offs, step, expect, near, lo, hi)
 
 
+@kernel
+def _levels(v: NDArray[np.float64]) -> tuple[float, float]:
+    """:func:`profile_levels` of one finite profile: its samples of rank
+    ``int(0.2 (n - 1))`` and ``int(0.98 (n - 1))``, by selection."""
+    n = v.size
+    k1, k2 = int(0.2 * (n - 1)), int(0.98 * (n - 1))
+    w = v.copy()
+    _select(w, k2, n)
+    _select(w, k1, k2 + 1)  # none of w[:k2] is above w[k2]
+    return w[k1], w[k2]
+
+
+@kernel
 def _strip(
     v: NDArray[np.float64],
-    offsets: NDArray[np.float64] | list[float],
+    offs: NDArray[np.float64],
     step: float,
     expect: float,
-    near: float | None,
+    near: float,
     lo: float,
     hi: float,
-) -> Strip | None:
+) -> tuple[bool, float, float, float]:
     """:func:`find_strip` of a finite profile ``v`` of levels ``lo``, ``hi`` at
-    ``offsets`` (ascending, uniform, ``step`` apart; a list of floats in a loop over
-    profiles: single offsets are read from it)."""
-    n = len(v)
-    if near is not None:
-        # Only the slice about the window (uniform offsets) is tested, a sample wider
-        # than it either side, with the same test.
+    ``offs`` (ascending, uniform, ``step`` apart); ``near`` NaN: none. Returns whether
+    a strip was found, its centre, width and contrast."""
+    n = v.size
+    if near == near:
         # The offsets are ascending and uniform, so the close ones are one run: its
         # ends from the spacing, then settled by the same test on single offsets.
-        o0 = float(offsets[0])
+        o0 = offs[0]
         j0 = min(max(int((expect - near - o0) / step), 0), n - 1)
         j1 = min(max(int((expect + near - o0) / step), 0), n - 1)
-        while j0 > 0 and abs(float(offsets[j0 - 1]) - expect) <= near:
+        while j0 > 0 and abs(offs[j0 - 1] - expect) <= near:
             j0 -= 1
-        while j0 <= j1 and abs(float(offsets[j0]) - expect) > near:
+        while j0 <= j1 and abs(offs[j0] - expect) > near:
             j0 += 1
-        while j1 < n - 1 and abs(float(offsets[j1 + 1]) - expect) <= near:
+        while j1 < n - 1 and abs(offs[j1 + 1] - expect) <= near:
             j1 += 1
-        while j1 >= j0 and abs(float(offsets[j1]) - expect) > near:
+        while j1 >= j0 and abs(offs[j1] - expect) > near:
             j1 -= 1
         if j0 <= j1:
-            hi = float(_max(v[j0 : j1 + 1]))
+            hi = v[j0]
+            for j in range(j0 + 1, j1 + 1):
+                if v[j] > hi:
+                    hi = v[j]
     if hi - lo < 12.0:
-        return None
+        return False, math.nan, math.nan, math.nan
     thr = 0.5 * (lo + hi)
-    above = (v > thr).view(np.int8)
-    d = above[1:] - above[:-1]
-    # The sample before each change: changes alternate, up (first sample above at i + 1)
-    # and down (last sample above at i); a run is an up and the down after it.
-    where = d.nonzero()[0].tolist()
-    first = 0 if where and d[where[0]] == 1 else 1
-    m = (len(where) - first) // 2
-    if m <= 0:
-        return None
-    # A profile has a few runs: their ends and centres in plain floats (the same
-    # arithmetic, without a numpy call per step).
-    best, best_k = None, 0
-    for k in range(m):
+    # The sample before each change of "above": changes alternate, up (first sample
+    # above at i + 1) and down (last sample above at i); a run is an up and the down
+    # after it.
+    where = np.empty(max(n - 1, 1), np.int64)
+    m = 0
+    for i in range(n - 1):
+        if (v[i + 1] > thr) != (v[i] > thr):
+            where[m] = i
+            m += 1
+    if m == 0:
+        return False, math.nan, math.nan, math.nan
+    first = 0 if v[where[0] + 1] > thr else 1
+    runs = (m - first) // 2
+    if runs <= 0:
+        return False, math.nan, math.nan, math.nan
+    best_c, best_w, best_k = math.nan, math.nan, -1
+    for k in range(runs):
         s0, s1 = where[first + 2 * k] + 1, where[first + 2 * k + 1]
-        v0, v1, w0, w1 = float(v[s0 - 1]), float(v[s0]), float(v[s1]), float(v[s1 + 1])
-        a = float(offsets[s0 - 1]) + (thr - v0) / (v1 - v0) * step
-        b = float(offsets[s1]) + (w0 - thr) / (w0 - w1) * step
+        v0, v1, w0, w1 = v[s0 - 1], v[s0], v[s1], v[s1 + 1]
+        a = offs[s0 - 1] + (thr - v0) / (v1 - v0) * step
+        b = offs[s1] + (w0 - thr) / (w0 - w1) * step
         c = 0.5 * (a + b)
-        if best is None or abs(c - expect) < abs(best[0] - expect):
-            best, best_k = (c, b - a), k
-    assert best is not None
+        if best_k < 0 or abs(c - expect) < abs(best_c - expect):
+            best_c, best_w, best_k = c, b - a, k
     s0, s1 = where[first + 2 * best_k] + 1, where[first + 2 * best_k + 1]
-    peak = float(_max(v[s0 : s1 + 1]))
-    return Strip(best[0], best[1], peak - lo)
+    peak = v[s0]
+    for j in range(s0 + 1, s1 + 1):
+        if v[j] > peak:
+            peak = v[j]
+    return True, best_c, best_w, peak - lo
 
 
 def profile_levels(values: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -301,71 +345,141 @@ def _circle_candidates(
     """Strips of about ``width`` (0.55 .. 1.7 of it, within ``accept`` when given)
     crossing a circle about the pivot, from the image sampled along it (``v``) at angles
     ``phi``."""
-    n = len(phi)
-    ok: NDArray[np.bool_] | None = None  # None: every sample on the image
-    if not math.isfinite(float(v.sum())):  # NaN off the image
-        ok = np.isfinite(v)
-        if ok.sum() < 10:
-            return []
-    vv = v if ok is None else np.where(ok, v, np.nanmedian(v))
-    # Top-hat: brightness above the local floor over 3 widths.
-    k = max(3, round(3 * width / step))
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
-
-    sm = uniform_filter1d(vv, max(1, round(0.2 * width / step)), mode="wrap")
-    # Grey opening (erosion, then dilation with the flat element mirrored: origin -1 for
-    # an even size), as scipy's grey_opening computes it, by the 1-D filters.
-    floor = maximum_filter1d(
-        minimum_filter1d(sm, k, mode="wrap"), k, mode="wrap", origin=-1 if k % 2 == 0 else 0
-    )
-    top = sm - floor
-    noise = median(np.abs(np.diff(vv))) + 1.0
-    out: list[_Candidate] = []
-    thr = max(10.0, 5 * noise)
     lo, hi = 0.55 * width, 1.7 * width
     if accept is not None:
         lo, hi = max(lo, accept[0]), min(hi, accept[1])
-    # Local maxima around the circle (np.roll's generality costs more than the compare).
-    before = np.concatenate((top[-1:], top[:-1]))
-    after = np.concatenate((top[1:], top[:1]))
-    at_peak = (top > thr) & (top >= before) & (top > after)
-    peaks = np.flatnonzero(at_peak if ok is None else at_peak & ok)
-    if not peaks.size:
-        return out
-    # Each peak's half-maximum ends: the first samples either side at or below half its
-    # height, at most a quarter of the circle away; read from a window of samples
-    # about every peak at once (a peak whose half maximum lies beyond it is walked
-    # sample by sample).
+    # Top-hat over 3 widths, on the samples smoothed over a fifth of one (Python's round:
+    # half to even).
+    k = max(3, round(3 * width / step))
+    smooth = max(1, round(0.2 * width / step))
+    angle, contrast, wid, ends = _circle_peaks(
+        np.ascontiguousarray(v, dtype=np.float64), phi, k, smooth, step, lo, hi
+    )
+    return [
+        _Candidate(a, c, w, i0, i1)
+        for a, c, w, (i0, i1) in zip(
+            angle.tolist(), contrast.tolist(), wid.tolist(), ends.tolist(), strict=True
+        )
+    ]
+
+
+@kernel
+def _circle_peaks(
+    v: NDArray[np.float64],
+    phi: NDArray[np.float64],
+    k: int,
+    smooth: int,
+    step: float,
+    lo: float,
+    hi: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`_circle_candidates`: the strips' angles, contrasts, widths and first and
+    last samples above half maximum ((S, 2)), from the circle's samples ``v`` (NaN off
+    the image: set to the others' median, never a peak) with a top-hat of ``k``
+    samples on the samples smoothed over ``smooth``."""
+    n = v.size
+    ok = np.empty(n, np.bool_)
+    finite = 0
+    for i in range(n):
+        ok[i] = math.isfinite(v[i])
+        finite += ok[i]
+    if finite < n:
+        if finite < 10:
+            return np.empty(0), np.empty(0), np.empty(0), np.empty((0, 2), np.int64)
+        kept = np.empty(finite)
+        j = 0
+        for i in range(n):
+            if ok[i]:
+                kept[j] = v[i]
+                j += 1
+        fill = _median(kept, True)
+        v = v.copy()
+        for i in range(n):
+            if not ok[i]:
+                v[i] = fill
+    # Top-hat: brightness above the local floor over k samples, a grey opening of the
+    # smoothed samples (erosion, then dilation with the flat element mirrored: origin -1
+    # for an even size), all as scipy.ndimage's 1-D filters compute them, around the
+    # circle (mode "wrap").
+    sm = _uniform_wrap(v, smooth)
+    floor = _extreme_wrap(_extreme_wrap(sm, k, 0, False), k, -1 if k % 2 == 0 else 0, True)
+    top = sm - floor
+    dv = np.empty(n - 1)
+    for i in range(n - 1):
+        dv[i] = abs(v[i + 1] - v[i])
+    noise = _median(dv, True) + 1.0
+    thr = max(10.0, 5 * noise)
+    # Each peak's half-maximum ends: the first samples either side at or below half
+    # its height, at most a quarter of the circle away.
     quarter = n // 4
-    reach = min(quarter, _WALK)
-    win = np.take(top, peaks[:, None] + np.arange(-reach, reach + 1)[None, :], mode="wrap")
-    half = win[:, reach] / 2
-    down = ~(win[:, reach::-1] > half[:, None])  # j samples before the peak
-    up = ~(win[:, reach:] > half[:, None])  # j samples after it
-    j_down = np.where(down.any(axis=1), down.argmax(axis=1), reach + 1).tolist()
-    j_up = np.where(up.any(axis=1), up.argmax(axis=1), reach + 1).tolist()
-    for p, h, jd, ju in zip(peaks.tolist(), half.tolist(), j_down, j_up, strict=True):
-        i0 = p - min(jd, quarter) if jd <= reach else _walk(top, p, h, -1, quarter)
-        i1 = p + min(ju, quarter) if ju <= reach else _walk(top, p, h, 1, quarter)
-        wid = (i1 - i0 - 1) * step
-        if lo <= wid <= hi:
-            angle = float(phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n))
-            out.append(_Candidate(angle, float(top[p]), wid, i0 + 1, i1 - 1))
+    angle, contrast, wid = np.empty(n), np.empty(n), np.empty(n)
+    ends = np.empty((n, 2), np.int64)
+    m = 0
+    for p in range(n):
+        t = top[p]
+        if not (ok[p] and t > thr and t >= top[p - 1] and t > top[(p + 1) % n]):
+            continue
+        half = t / 2
+        i0 = p
+        while top[i0 % n] > half and p - i0 < quarter:
+            i0 -= 1
+        i1 = p
+        while top[i1 % n] > half and i1 - p < quarter:
+            i1 += 1
+        w = (i1 - i0 - 1) * step
+        if lo <= w <= hi:
+            angle[m] = phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n)
+            contrast[m], wid[m] = t, w
+            ends[m, 0], ends[m, 1] = i0 + 1, i1 - 1
+            m += 1
+    return angle[:m], contrast[:m], wid[:m], ends[:m]
+
+
+@kernel
+def _uniform_wrap(x: NDArray[np.float64], size: int) -> NDArray[np.float64]:
+    """``scipy.ndimage.uniform_filter1d(x, size, mode="wrap")`` with its arithmetic: a
+    running sum (the first window's in order, then the sample entering less the one
+    leaving), each divided by ``size``."""
+    n = x.size
+    start = -(size // 2)
+    out = np.empty(n)
+    tmp = 0.0
+    for j in range(size):
+        tmp += x[(start + j) % n]
+    out[0] = tmp / size
+    for i in range(1, n):
+        tmp += x[(start + i + size - 1) % n] - x[(start + i - 1) % n]
+        out[i] = tmp / size
     return out
 
 
-#: Samples either side of a peak on a search circle read at once for its half-maximum
-#: ends (:func:`_circle_candidates`).
-_WALK = 64
-
-
-def _walk(top: NDArray[np.float64], p: int, half: float, way: int, quarter: int) -> int:
-    """The first sample from peak ``p`` along ``way`` (+-1) around the circle whose
-    ``top`` is at or below ``half``, at most ``quarter`` samples away."""
-    n, i = len(top), p
-    while float(top[i % n]) > half and abs(i - p) < quarter:
-        i += way
-    return i
+@kernel
+def _extreme_wrap(
+    x: NDArray[np.float64], size: int, origin: int, is_max: bool
+) -> NDArray[np.float64]:
+    """``scipy.ndimage.maximum_filter1d`` (``is_max``) or ``minimum_filter1d`` of ``x``
+    with ``size`` and ``origin``, mode "wrap" (each output the extreme of the window
+    ``i - size // 2 - origin`` .. ``+ size - 1``), by van Herk / Gil-Werman's running
+    extremes over blocks of ``size``: exact, whatever the order."""
+    n = x.size
+    start = -(size // 2) - origin
+    m = n + size - 1
+    ext = np.empty(m)
+    for j in range(m):
+        ext[j] = x[(start + j) % n]
+    sign = 1.0 if is_max else -1.0
+    fwd, bwd = np.empty(m), np.empty(m)
+    for j in range(m):
+        e = sign * ext[j]
+        fwd[j] = e if j % size == 0 or e > fwd[j - 1] else fwd[j - 1]
+    for j in range(m - 1, -1, -1):
+        e = sign * ext[j]
+        bwd[j] = e if j == m - 1 or (j + 1) % size == 0 or e > bwd[j + 1] else bwd[j + 1]
+    out = np.empty(n)
+    for i in range(n):
+        a, b = bwd[i], fwd[i + size - 1]
+        out[i] = sign * (a if a > b else b)
+    return out
 
 
 def _circle_strips(
@@ -576,12 +690,11 @@ def _follow(
     ts_all = np.arange(step, max_len + step / 2, step)
     n = np.array([-direction[1], direction[0]])
     offs = np.arange(-half_m, half_m + 0.375 * px_m, 0.75 * px_m)
-    offs_l = offs.tolist()  # single offsets, read by the search
     across = (offs * n[0], offs * n[1])  # the profiles' offsets in the plane, x and y
     step_o = float(offs[1] - offs[0])
-    centres: list[float] = []
-    widths: list[float] = []
-    at: list[int] = []  # the profiles that found the strip
+    centres: list[NDArray[np.float64]] = []
+    widths: list[NDArray[np.float64]] = []
+    at: list[NDArray[np.int64]] = []  # the profiles that found the strip
     expect, prev_w = 0.0, width
     lost = False
     missed = False
@@ -592,53 +705,68 @@ def _follow(
         for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
             np.add((start[c] + ts * direction[c])[:, None], across[c], out=pts[:, :, c])
         vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
-        # The levels of every finite profile of the batch in one call (the search itself
-        # depends on where the strip was in the previous profile). Samples are NaN off
-        # the image only, so a finite sum is a finite batch.
-        if math.isfinite(float(vals.sum())):
-            known: list[list[float] | None] = list(profile_levels(vals).tolist())
-        else:
-            finite = np.asarray(np.isfinite(vals).all(axis=1), dtype=bool)
-            levels = np.full((len(ts), 2), np.nan)
-            if finite.any():
-                levels[finite] = profile_levels(vals[finite])
-            known = [
-                lh if ok else None for lh, ok in zip(levels.tolist(), finite.tolist(), strict=True)
-            ]
-        for k in range(len(ts)):
-            near = 0.6 * max(prev_w, width)
-            lh = known[k]
-            s = (
-                find_strip(vals[k], offs, expect, near=near)
-                if lh is None
-                else _strip(vals[k], offs_l, step_o, expect, near, lh[0], lh[1])
-            )
-            if (
-                s is None
-                or s.width < 0.5 * width
-                or abs(s.centre - expect) > 0.7 * max(prev_w, width)
-            ):
-                # Toward the hub, one profile missed is not the end when the next finds
-                # the hub: a profile along the clamp face is half bright (a narrow
-                # beam's window then sees the beam brighter than the face).
-                if missed or not to_hub:
-                    lost = True
-                    break
-                missed = True
-                continue
-            if missed and s.width <= _HUB_WIDENING * width:
-                lost = True
-                break
-            missed = False
-            centres.append(s.centre)
-            widths.append(s.width)
-            at.append(b0 + k)
-            expect, prev_w = s.centre, s.width
+        cb, wb, kb = np.empty(len(ts)), np.empty(len(ts)), np.empty(len(ts), np.int64)
+        count, expect, prev_w, missed, lost = _follow_batch(
+            vals, offs, step_o, width, to_hub, expect, prev_w, missed, cb, wb, kb
+        )
+        centres.append(cb[:count])
+        widths.append(wb[:count])
+        at.append(kb[:count] + b0)
         b0 += len(ts)
         size = next(more, 2 * size)
-    if not centres:
+    cs = np.concatenate(centres) if centres else np.zeros(0)
+    if not len(cs):
         return np.zeros((0, 2)), np.zeros(0)
-    cs = np.array(centres)
-    ts = ts_all[at]
+    ts = ts_all[np.concatenate(at)]
     out = (start[None, :] + ts[:, None] * direction[None, :]) + cs[:, None] * n[None, :]
-    return out, np.array(widths)
+    return out, np.concatenate(widths)
+
+
+@kernel
+def _follow_batch(
+    vals: NDArray[np.float64],
+    offs: NDArray[np.float64],
+    step: float,
+    width: float,
+    to_hub: bool,
+    expect: float,
+    prev_w: float,
+    missed: bool,
+    centres: NDArray[np.float64],
+    widths: NDArray[np.float64],
+    found: NDArray[np.int64],
+) -> tuple[int, float, float, bool, bool]:
+    """:func:`_follow` through one batch of cross-profiles ``vals`` (K, M): the strip
+    in each (:func:`find_strip` within 0.6 of the last width of the last crossing),
+    written to ``centres``, ``widths`` and ``found`` (the profile's index). Returns
+    how many were found, the search's state after the batch (``expect``, ``prev_w``,
+    ``missed``) and whether the strip was lost."""
+    count = 0
+    for k in range(vals.shape[0]):
+        near = 0.6 * max(prev_w, width)
+        row = vals[k]
+        finite = True
+        for i in range(row.size):
+            if not math.isfinite(row[i]):
+                finite = False
+                break
+        if finite:
+            lo, hi = _levels(row)
+            ok, c, w, _ = _strip(row, offs, step, expect, near, lo, hi)
+        else:
+            ok, c, w, _ = _find_strip(row, offs, step, expect, near)
+        if not ok or w < 0.5 * width or abs(c - expect) > 0.7 * max(prev_w, width):
+            # Toward the hub, one profile missed is not the end when the next finds
+            # the hub: a profile along the clamp face is half bright (a narrow
+            # beam's window then sees the beam brighter than the face).
+            if missed or not to_hub:
+                return count, expect, prev_w, missed, True
+            missed = True
+            continue
+        if missed and w <= _HUB_WIDENING * width:
+            return count, expect, prev_w, missed, True
+        missed = False
+        centres[count], widths[count], found[count] = c, w, k
+        count += 1
+        expect, prev_w = c, w
+    return count, expect, prev_w, missed, False

@@ -34,7 +34,7 @@ def _median(a: NDArray[np.float64], overwrite: bool) -> float:
             return math.nan
     w = a if overwrite else a.copy()
     k = n // 2
-    _select(w, k)
+    _select(w, k, n)
     if n % 2:
         return w[k]
     lo = w[0]
@@ -45,11 +45,11 @@ def _median(a: NDArray[np.float64], overwrite: bool) -> float:
 
 
 @kernel
-def _select(w: NDArray[np.float64], k: int) -> None:
-    """Partition ``w`` (no NaN) about its ``k``-th smallest value, in place: ``w[k]`` is
-    that value, none before it is larger, none after it smaller (Hoare's quickselect,
-    median-of-three pivot)."""
-    lo, hi = 0, w.size - 1
+def _select(w: NDArray[np.float64], k: int, n: int) -> None:
+    """Partition ``w[:n]`` (no NaN) about its ``k``-th smallest value, in place: ``w[k]``
+    is that value, none before it is larger, none after it (to ``n``) smaller (Hoare's
+    quickselect, median-of-three pivot)."""
+    lo, hi = 0, n - 1
     while hi > lo:
         a, b, c = w[lo], w[(lo + hi) >> 1], w[hi]
         if a > b:

@@ -1,0 +1,144 @@
+"""vision.locate's search kernels against the numpy forms they replace
+(tests/vision/locate_numpy.py): the same decisions (which run, which profile, which
+peak) and the same numbers to the last bit (the same arithmetic in the same order;
+levels and medians are order statistics)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
+
+from tests.vision.locate_numpy import circle_candidates_numpy, find_strip_numpy, follow_numpy
+from vision.locate import (
+    _HUB_WIDENING,
+    _circle_candidates,
+    _extreme_wrap,
+    _follow_batch,
+    _uniform_wrap,
+    find_strip,
+    profile_levels,
+)
+
+
+def _profile(rng: np.random.Generator, offs: np.ndarray, centre: float, width: float) -> np.ndarray:
+    v = 30 + rng.uniform(0, 200) * (np.abs(offs - centre) < width / 2) + rng.normal(0, 4, offs.size)
+    if rng.uniform() < 0.5:  # a second bar, maybe brighter
+        v += rng.uniform(0, 250) * (np.abs(offs - centre - rng.uniform(-60, 60)) < 3)
+    if rng.uniform() < 0.2:  # integer levels: ties at the threshold
+        v = np.round(v)
+    return v
+
+
+def test_find_strip_decides_and_measures_as_the_numpy_form() -> None:
+    rng = np.random.default_rng(21)
+    offs = np.arange(-100.0, 100.5, 0.75)
+    seen = {"none": 0, "found": 0}
+    for k in range(3000):
+        v = _profile(rng, offs, rng.uniform(-110, 110), rng.uniform(2, 40))
+        if k % 5 == 0:  # off the image at one end: kept (>= 70 % on it) or not
+            v[: int(rng.integers(1, 80))] = np.nan
+        if k % 11 == 0:
+            v[:] = 90.0 + rng.normal(0, 3, v.size)  # no contrast
+        expect = rng.uniform(-100, 100)
+        near = None if k % 3 == 0 else float(rng.uniform(0.2, 40))
+        want = find_strip_numpy(v, offs, expect, near=near)
+        got = find_strip(v, offs, expect, near=near)
+        if want is None:
+            assert got is None, k
+            seen["none"] += 1
+            continue
+        assert got is not None, k
+        assert (got.centre, got.width, got.contrast) == (want.centre, want.width, want.contrast), k
+        seen["found"] += 1
+        if np.isfinite(v).all():
+            lo, hi = profile_levels(v[None, :])[0]
+            again = find_strip(v, offs, expect, near=near, levels=(float(lo), float(hi)))
+            assert again == got
+    assert min(seen.values()) > 300  # both outcomes tested many times
+
+
+def test_the_follows_search_is_the_numpy_forms_batch_by_batch() -> None:
+    rng = np.random.default_rng(22)
+    offs = np.arange(-50.0, 50.4, 0.75)
+    lost = {True: 0, False: 0}
+    for k in range(400):
+        width = float(rng.uniform(4, 12))
+        rows, centre, w = [], 0.0, width
+        for _ in range(int(rng.integers(1, 40))):
+            centre += rng.normal(0, 1.5)
+            if rng.uniform() < 0.05:
+                w = width * rng.uniform(1.2, 2.5)  # the hub, or a strip widening
+            rows.append(_profile(rng, offs, centre, w))
+            if rng.uniform() < 0.08:
+                rows[-1][: int(rng.integers(1, 60))] = np.nan
+            if rng.uniform() < 0.05:
+                rows[-1][:] = 40.0  # a profile missed
+        vals = np.array(rows)
+        to_hub = bool(k % 2)
+        want = follow_numpy(vals, offs, width, to_hub, _HUB_WIDENING)
+        # in batches of random sizes, the state carried from one to the next
+        state = (0.0, width, False)
+        found, centres, widths, gone = [], [], [], False
+        b0 = 0
+        while b0 < len(vals) and not gone:
+            size = int(rng.integers(1, 20))
+            batch = vals[b0 : b0 + size]
+            cb, wb = np.empty(len(batch)), np.empty(len(batch))
+            kb = np.empty(len(batch), np.int64)
+            count, *rest = _follow_batch(batch, offs, 0.75, width, to_hub, *state, cb, wb, kb)
+            state, gone = (rest[0], rest[1], rest[2]), rest[3]
+            found += (kb[:count] + b0).tolist()
+            centres += cb[:count].tolist()
+            widths += wb[:count].tolist()
+            b0 += len(batch)
+        assert (found, centres, widths, gone) == want, k
+        lost[gone] += 1
+    assert min(lost.values()) > 50
+
+
+def test_the_circles_strips_are_the_numpy_forms() -> None:
+    rng = np.random.default_rng(23)
+    counts = []
+    for k in range(300):
+        n = int(rng.integers(40, 1500))
+        phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
+        step = float(rng.uniform(0.5e-3, 2e-3))
+        width = float(rng.uniform(2, 30)) * step
+        v = 40 + rng.normal(0, rng.uniform(0.5, 6), n)
+        for _ in range(int(rng.integers(0, 6))):  # strips, some across the wrap
+            c, w = int(rng.integers(0, n)), rng.uniform(0.3, 3) * width / step
+            idx = np.arange(int(c - w / 2), int(c + w / 2) + 1) % n
+            v[idx] += rng.uniform(5, 200)
+        if k % 4 == 0:
+            v = np.round(v)  # plateaus: ties between neighbours
+        if k % 5 == 0:  # a stretch off the image (NaN), sometimes nearly all of it
+            a = int(rng.integers(0, n))
+            v[a : a + int(rng.integers(1, n))] = np.nan
+        accept = (
+            None if k % 2 else (float(rng.uniform(1, 5)) * step, float(rng.uniform(5, 60)) * step)
+        )
+        want = circle_candidates_numpy(v, phi, width, step, accept)
+        got = _circle_candidates(v, phi, width, step, accept)
+        assert got == want, k
+        counts.append(len(got))
+    assert counts.count(0) > 20 and max(counts) >= 3
+
+
+def test_the_top_hats_filters_are_scipys_bit_for_bit() -> None:
+    rng = np.random.default_rng(24)
+    for t in range(2000):
+        n = int(rng.integers(1, 300))
+        x = rng.normal(size=n) * 50
+        if t % 3 == 0:
+            x = np.round(x)  # ties
+        size = int(rng.integers(1, 2 * n + 5))  # windows wider than the circle too
+        origin = int(rng.integers(-(size // 2), (size - 1) // 2 + 1))
+        np.testing.assert_array_equal(
+            _uniform_wrap(x, size), uniform_filter1d(x, size, mode="wrap")
+        )
+        for is_max, f in ((True, maximum_filter1d), (False, minimum_filter1d)):
+            want = f(x, size, mode="wrap", origin=origin)
+            np.testing.assert_array_equal(_extreme_wrap(x, size, origin, is_max), want)
+    assert math.isnan(_uniform_wrap(np.array([1.0, np.nan]), 1)[1])
