@@ -21,8 +21,9 @@ from numpy.typing import NDArray
 
 from vision.centreline import correlation_inflation
 from vision.errors import FrameFailure
+from vision.jit import kernel
 from vision.locate import Rough, ToPx
-from vision.sampling import bilinear, median
+from vision.sampling import _bilinear, _median
 
 
 def rough_axis(rough: Rough) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
@@ -50,52 +51,155 @@ def hub_axis(
     ``e``: the rough axis direction. Returns the unit direction (back to front) and
     normal, the axis offset along the normal, the width and the standard uncertainty of
     the direction (rad)."""
-    length = float((front - back) @ e)
-    sa, sb = (pa - back) @ e, (pb - back) @ e
-    pa = pa[(sa > margin) & (sa < length - margin)]
-    pb = pb[(sb > margin) & (sb < length - margin)]
-    if len(pa) < 5 or len(pb) < 5:
+    status, c, s, ba, bb, res_ss, spread, along_a, along_b = _hub_axis(
+        np.ascontiguousarray(pa, dtype=np.float64),
+        np.ascontiguousarray(pb, dtype=np.float64),
+        float(back[0]),
+        float(back[1]),
+        float((front - back) @ e),
+        float(e[0]),
+        float(e[1]),
+        margin,
+    )
+    if status == 1:
         raise FrameFailure("hub edges not visible")
+    if status == 2:
+        raise FrameFailure("hub edges not straight")
+    e = np.array([c, s])
+    n = np.array([-s, c])
+    dof = max(len(along_a) + len(along_b) - 3, 1)
+    infl = max(correlation_inflation(along_a), correlation_inflation(along_b))
+    sd = math.sqrt(res_ss / dof / max(spread, 1e-18) * infl)
+    return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
+
+
+@kernel
+def _hub_axis(
+    pa: NDArray[np.float64],
+    pb: NDArray[np.float64],
+    back_x: float,
+    back_y: float,
+    length: float,
+    ex: float,
+    ey: float,
+    margin: float,
+) -> tuple[int, float, float, float, float, float, float, NDArray[np.float64], NDArray]:
+    """:func:`hub_axis` up to the residuals' correlation: a status (0, or 1: too few
+    points clear of the ends, 2: too few kept), the direction (c, s), the two edges'
+    offsets along the normal, the residuals' sum of squares, the points' spread along
+    the direction, and each edge's residuals about its mean ordered along it."""
+    xa, ya = _clear(pa, back_x, back_y, length, ex, ey, margin)
+    xb, yb = _clear(pb, back_x, back_y, length, ex, ey, margin)
+    empty = np.empty(0)
+    if xa.size < 5 or xb.size < 5:
+        return 1, ex, ey, 0.0, 0.0, 0.0, 0.0, empty, empty
     # Two robust passes: the common direction of both edges (the major axis of their
     # scatter about their own centroids, in closed form), then drop points beyond
-    # four robust sigmas across it. x and y apart: (N, 2) arrays are slow to operate on.
-    xa, ya, xb, yb = pa[:, 0], pa[:, 1], pb[:, 0], pb[:, 1]
+    # four robust sigmas across it.
+    c, s = ex, ey
     for _ in range(2):
-        na, nb = len(xa), len(xb)  # sum / n: ndarray.mean's wrapper costs more here
-        dxa, dya = xa - xa.sum() / na, ya - ya.sum() / na
-        dxb, dyb = xb - xb.sum() / nb, yb - yb.sum() / nb
-        sxx = float(dxa @ dxa + dxb @ dxb)
-        syy = float(dya @ dya + dyb @ dyb)
-        sxy = float(dxa @ dya + dxb @ dyb)
+        na, nb = xa.size, xb.size
+        mxa, mya, mxb, myb = _mean(xa), _mean(ya), _mean(xb), _mean(yb)
+        sxx, syy, sxy = 0.0, 0.0, 0.0
+        for i in range(na):
+            dx, dy = xa[i] - mxa, ya[i] - mya
+            sxx += dx * dx
+            syy += dy * dy
+            sxy += dx * dy
+        for i in range(nb):
+            dx, dy = xb[i] - mxb, yb[i] - myb
+            sxx += dx * dx
+            syy += dy * dy
+            sxy += dx * dy
         th = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
-        c, s = math.cos(th), math.sin(th)
+        c0, s0 = math.cos(th), math.sin(th)
         # The major axis's sense: along the rough axis (within a few degrees of it).
-        if not c * float(e[0]) + s * float(e[1]) > 0:
-            c, s = -c, -s
-        e = np.array([c, s])
-        ra, rb = dya * c - dxa * s, dyb * c - dxb * s
-        r = np.abs(np.concatenate([ra, rb]))
-        sig = 1.4826 * median(r) + 1e-9
-        keep = r < 4 * sig
-        ka, kb = keep[:na], keep[na:]
-        if np.count_nonzero(ka) < 3 or np.count_nonzero(kb) < 3:
-            raise FrameFailure("hub edges not straight")
-        xa, ya, xb, yb = xa[ka], ya[ka], xb[kb], yb[kb]
-    n = np.array([-e[1], e[0]])
-    pa, pb = np.column_stack([xa, ya]), np.column_stack([xb, yb])
-    ca = np.array([xa.sum() / len(xa), ya.sum() / len(ya)])
-    cb = np.array([xb.sum() / len(xb), yb.sum() / len(yb)])
-    ba, bb = float(ca @ n), float(cb @ n)
+        if not c0 * c + s0 * s > 0:
+            c0, s0 = -c0, -s0
+        c, s = c0, s0
+        r = np.empty(na + nb)
+        for i in range(na):
+            r[i] = abs((ya[i] - mya) * c - (xa[i] - mxa) * s)
+        for i in range(nb):
+            r[na + i] = abs((yb[i] - myb) * c - (xb[i] - mxb) * s)
+        sig = 1.4826 * _median(r.copy(), True) + 1e-9
+        xa, ya = _kept(xa, ya, r[:na], 4 * sig)
+        xb, yb = _kept(xb, yb, r[na:], 4 * sig)
+        if xa.size < 3 or xb.size < 3:
+            return 2, c, s, 0.0, 0.0, 0.0, 0.0, empty, empty
+    mxa, mya, mxb, myb = _mean(xa), _mean(ya), _mean(xb), _mean(yb)
+    ba, bb = mxa * -s + mya * c, mxb * -s + myb * c
     # Direction uncertainty of the common-direction fit: residual / spread along it.
-    da, db = pa - ca, pb - cb
-    ra, rb = da @ n, db @ n
-    res = np.concatenate([ra, rb])
-    ua, ub = da @ e, db @ e
-    spread = float((ua * ua).sum() + (ub * ub).sum())
-    dof = max(len(res) - 3, 1)
-    infl = max(correlation_inflation(_along(pa, e, n)), correlation_inflation(_along(pb, e, n)))
-    sd = math.sqrt(float((res * res).sum()) / dof / max(spread, 1e-18) * infl)
-    return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
+    res_ss, spread = 0.0, 0.0
+    for x, y, mx, my in ((xa, ya, mxa, mya), (xb, yb, mxb, myb)):
+        for i in range(x.size):
+            dx, dy = x[i] - mx, y[i] - my
+            res = dx * -s + dy * c
+            u = dx * c + dy * s
+            res_ss += res * res
+            spread += u * u
+    return 0, c, s, ba, bb, res_ss, spread, _along(xa, ya, c, s), _along(xb, yb, c, s)
+
+
+@kernel
+def _clear(
+    p: NDArray[np.float64],
+    back_x: float,
+    back_y: float,
+    length: float,
+    ex: float,
+    ey: float,
+    margin: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """x and y of the points ``p`` (N, 2) more than ``margin`` clear of both ends."""
+    x, y = np.empty(p.shape[0]), np.empty(p.shape[0])
+    m = 0
+    for i in range(p.shape[0]):
+        a = (p[i, 0] - back_x) * ex + (p[i, 1] - back_y) * ey
+        if a > margin and a < length - margin:
+            x[m], y[m] = p[i, 0], p[i, 1]
+            m += 1
+    return x[:m], y[:m]
+
+
+@kernel
+def _kept(
+    x: NDArray[np.float64], y: NDArray[np.float64], r: NDArray[np.float64], limit: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The points whose ``r`` is below ``limit``."""
+    m = 0
+    kx, ky = np.empty(x.size), np.empty(x.size)
+    for i in range(x.size):
+        if r[i] < limit:
+            kx[m], ky[m] = x[i], y[i]
+            m += 1
+    return kx[:m], ky[:m]
+
+
+@kernel
+def _mean(x: NDArray[np.float64]) -> float:
+    s = 0.0
+    for i in range(x.size):
+        s += x[i]
+    return s / x.size
+
+
+@kernel
+def _along(x: NDArray[np.float64], y: NDArray[np.float64], c: float, s: float) -> NDArray:
+    """Residuals across a straight edge (points x, y; direction c, s) about its mean,
+    ordered along it (a stable insertion sort: the points come nearly in order)."""
+    mx, my = _mean(x), _mean(y)
+    n = x.size
+    u, r = np.empty(n), np.empty(n)
+    for i in range(n):
+        dx, dy = x[i] - mx, y[i] - my
+        ui, ri = dx * c + dy * s, dx * -s + dy * c
+        j = i
+        while j > 0 and u[j - 1] > ui:
+            u[j], r[j] = u[j - 1], r[j - 1]
+            j -= 1
+        u[j], r[j] = ui, ri
+    return r
 
 
 def clamp_face(
@@ -155,31 +259,46 @@ def end_edge(
     pts = np.empty((len(lateral), len(t), 2))
     for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
         np.add(origin[c] + t * e[c], (lateral * n[c])[:, None], out=pts[:, :, c])
-    v = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(lateral), len(t))
-    if not math.isfinite(float(v.sum())):  # NaN off the image
+    px = np.ascontiguousarray(to_px(pts.reshape(-1, 2)), dtype=np.float64)
+    centre, total = _end_edge(np.ascontiguousarray(image), px, len(lateral), round(3.0 / 0.25))
+    if total != total:  # NaN off the image
         raise FrameFailure("clamp or tip outside the image")
-    prof = v.mean(axis=0)
-    diff = prof[:-1] - prof[1:]  # bright to dark: the fall from each sample to the next
-    centre, total = _step_moment(diff, int(np.argmax(diff)), round(3.0 / 0.25))
     if not math.isfinite(centre) or total < 8.0:
         raise FrameFailure("no clear end edge (clamp or tip)")
     return float(t[0] + centre * step)
 
 
-def _step_moment(diff: NDArray[np.float64], peak: int, half: int) -> tuple[float, float]:
-    """First moment (position, step k at k + 0.5) and sum of the positive steps within
-    ``half`` of ``peak`` in one profile's steps: :func:`vision.sampling.edge_moment` for
-    a single line, without its batch machinery."""
-    lo, hi = max(peak - half, 0), min(peak + half, len(diff) - 1)
-    d = diff[lo : hi + 1]
-    d = np.where(d > 0, d, 0.0)
-    total = float(d.sum())
+@kernel
+def _end_edge(
+    image: NDArray[np.uint8], px: NDArray[np.float64], lines: int, half: int
+) -> tuple[float, float]:
+    """:func:`end_edge` from the raw pixels ``px`` of its ``lines`` profiles (one after
+    the other): the first moment (step k at k + 0.5) and the sum of the positive
+    steps (bright to dark, from the lines' mean profile) within ``half`` steps of the
+    largest; NaN, NaN when a sample is off the image (moment NaN: no positive step)."""
+    v = _bilinear(image, px)
+    m = v.size // lines
+    prof = np.zeros(m)
+    for line in range(lines):
+        for j in range(m):
+            x = v[line * m + j]
+            if x != x:
+                return math.nan, math.nan
+            prof[j] += x
+    for j in range(m):
+        prof[j] /= lines
+    peak, top = 0, -math.inf
+    for j in range(m - 1):
+        d = prof[j] - prof[j + 1]
+        if d > top:
+            peak, top = j, d
+    lo, hi = max(peak - half, 0), min(peak + half, m - 2)
+    total, moment = 0.0, 0.0
+    for k in range(lo, hi + 1):
+        d = prof[k] - prof[k + 1]
+        if d > 0:
+            total += d
+            moment += d * (k + 0.5)
     if total <= 0.0:
         return math.nan, total
-    return float((d * (np.arange(lo, hi + 1) + 0.5)).sum()) / total, total
-
-
-def _along(p: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64]) -> NDArray:
-    """Residuals across a straight edge (N, 2) about its mean, ordered along it."""
-    c = p - p.mean(axis=0)
-    return (c @ n)[np.argsort(c @ e)]
+    return moment / total, total

@@ -6,27 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from numpy.typing import NDArray
 
+from tests.vision.sampling_numpy import bilinear_numpy
 from vision.errors import ParameterError
 from vision.sampling import BilinearPlan, bilinear, median
-
-
-def _bilinear_numpy(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The numpy form the kernel replaced: flat gathers, NaN off the image."""
-    h, w = image.shape
-    x, y = xy[..., 0], xy[..., 1]
-    ok = (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
-    xc, yc = np.where(ok, x, 0.0), np.where(ok, y, 0.0)
-    x0 = np.minimum(xc.astype(np.intp), w - 2)
-    y0 = np.minimum(yc.astype(np.intp), h - 2)
-    i = y0 * w + x0
-    flat = image.ravel()
-    fx, fy = xc - x0, yc - y0
-    v00, v10 = flat[i], flat[i + w]
-    top = v00 + fx * (flat[i + 1] - v00.astype(np.float64))
-    bottom = v10 + fx * (flat[i + w + 1] - v10.astype(np.float64))
-    return np.where(ok, top + fy * (bottom - top), np.nan)
 
 
 def test_bilinear_is_the_numpy_form_bit_for_bit() -> None:
@@ -36,7 +19,7 @@ def test_bilinear_is_the_numpy_form_bit_for_bit() -> None:
         xy = np.column_stack([rng.uniform(-2, w + 1, 4000), rng.uniform(-2, h + 1, 4000)])
         # the last row and column, the corners, NaN and infinities
         xy[:6] = [[w - 1, h - 1], [0, 0], [w - 1, 0.5], [0.5, h - 1], [np.nan, 1], [1, -np.inf]]
-        want = _bilinear_numpy(img, xy)
+        want = bilinear_numpy(img, xy)
         got = bilinear(img, xy)
         np.testing.assert_array_equal(got, want)
         assert np.isnan(got[4:6]).all() and np.isfinite(got[:4]).all()

@@ -1,0 +1,99 @@
+"""vision.hub's kernels against the numpy forms they replace (tests/vision/hub_numpy.py):
+the same decisions (points kept, failures) and the same numbers to rounding. Sums now
+run in order where numpy summed pairwise (or BLAS dotted): over at most a few hundred
+terms of one sign that moves a result by a few hundred ulps at most, so 1e-12 relative
+(1e-13 m absolute on offsets of centimetres) is rounding, and a changed decision
+(another point dropped, another step taken as the edge) would be orders larger."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tests.vision.hub_numpy import end_edge_numpy, hub_axis_numpy
+from vision.errors import FrameFailure
+from vision.hub import end_edge, hub_axis
+
+
+def _outcome(fn, *args, **kw):  # type: ignore[no-untyped-def]
+    try:
+        return fn(*args, **kw)
+    except FrameFailure as exc:
+        return str(exc)
+
+
+def _edges(rng: np.random.Generator, n: int, theta: float, width: float, noise: float):  # type: ignore[no-untyped-def]
+    e = np.array([math.cos(theta), math.sin(theta)])
+    nn = np.array([-e[1], e[0]])
+    back = rng.normal(0, 0.05, 2)
+    length = rng.uniform(0.02, 0.1)
+    pts = []
+    for side in (0.5, -0.5):
+        a = np.sort(rng.uniform(-0.005, length + 0.005, n))
+        b = side * width + rng.normal(0, noise, n)
+        if rng.uniform() < 0.7:  # outliers
+            k = rng.integers(0, n, max(1, n // 10))
+            b[k] += rng.normal(0, 30 * noise, k.size)
+        pts.append(back + a[:, None] * e + b[:, None] * nn)
+    rough = np.array([math.cos(theta + 0.03), math.sin(theta + 0.03)])
+    return pts[0], pts[1], back, back + length * e, rough
+
+
+def test_hub_axis_is_the_numpy_forms() -> None:
+    rng = np.random.default_rng(31)
+    failed = 0
+    for k in range(400):
+        n = int(rng.integers(3, 200))
+        noise = float(rng.uniform(1e-6, 2e-4)) if k % 7 else 0.0  # exact lines: r all 0
+        pa, pb, back, front, e = _edges(rng, n, rng.uniform(-np.pi, np.pi), 0.03, noise)
+        margin = float(rng.uniform(0.0, 0.01))
+        want = _outcome(hub_axis_numpy, pa, pb, back, front, e, margin)
+        got = _outcome(hub_axis, pa, pb, back, front, e, margin)
+        if isinstance(want, str):
+            assert got == want, k
+            failed += 1
+            continue
+        assert not isinstance(got, str), k
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-13, err_msg=str(k))
+    assert 10 <= failed < 300  # both outcomes
+
+
+def test_end_edge_is_the_numpy_forms() -> None:
+    rng = np.random.default_rng(32)
+    h, w = 300, 330
+    yy, xx = np.mgrid[0:h, 0:w]
+    outcomes = {"edge": 0, "failure": 0}
+    for k in range(60):
+        # a bright bar ending at x0 (blurred), light falling across the image
+        x0 = rng.uniform(120, 250)
+        blur = rng.uniform(0.5, 4)
+        level = rng.uniform(5, 120) if k % 6 else 3.0  # some too faint: no clear edge
+        img = 40 + level / (1 + np.exp((xx - x0) / blur)) * (np.abs(yy - 150) < 30)
+        img = np.clip(img + 0.1 * xx + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+        scale = rng.uniform(800, 1200)  # px per m
+        origin_px = np.array([rng.uniform(20, 60), 150.0])
+
+        def to_px(p: np.ndarray, s: float = scale, o: np.ndarray = origin_px) -> np.ndarray:
+            return o + np.asarray(p) * np.array([s, -s])
+
+        theta = rng.normal(0, 0.05)
+        e = np.array([math.cos(theta), math.sin(theta)])
+        n = np.array([-e[1], e[0]])
+        lateral = np.linspace(-0.01, 0.01, int(rng.integers(1, 7)))
+        guess = (x0 - origin_px[0]) / scale + rng.normal(0, 0.005)
+        reach = rng.uniform(0.01, 0.05) if k % 10 else 0.5  # some reach off the image
+        args = (img, np.zeros(2), e, n, lateral, guess, reach)
+        kw = {"to_px": to_px, "px_m": 1.0 / scale}
+        want = _outcome(end_edge_numpy, *args, **kw)
+        got = _outcome(end_edge, *args, **kw)
+        if isinstance(want, str):
+            assert got == want, k
+            outcomes["failure"] += 1
+        else:
+            assert not isinstance(got, str), k
+            assert got == pytest.approx(want, rel=1e-12, abs=1e-13), k
+            outcomes["edge"] += 1
+    assert min(outcomes.values()) >= 10
