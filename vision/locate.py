@@ -417,15 +417,17 @@ def _circle_peaks(
     m = 0
     for p in range(n):
         t = top[p]
-        if not (ok[p] and t > thr and t >= top[p - 1] and t > top[(p + 1) % n]):
+        if not (ok[p] and t > thr and t >= top[p - 1] and t > top[p + 1 if p + 1 < n else 0]):
             continue
         half = t / 2
-        i0 = p
-        while top[i0 % n] > half and p - i0 < quarter:
+        i0, j = p, p  # j: i0 around the circle
+        while top[j] > half and p - i0 < quarter:
             i0 -= 1
-        i1 = p
-        while top[i1 % n] > half and i1 - p < quarter:
+            j = j - 1 if j > 0 else n - 1
+        i1, j = p, p
+        while top[j] > half and i1 - p < quarter:
             i1 += 1
+            j = j + 1 if j < n - 1 else 0
         w = (i1 - i0 - 1) * step
         if lo <= w <= hi:
             angle[m] = phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n)
@@ -441,15 +443,27 @@ def _uniform_wrap(x: NDArray[np.float64], size: int) -> NDArray[np.float64]:
     running sum (the first window's in order, then the sample entering less the one
     leaving), each divided by ``size``."""
     n = x.size
-    start = -(size // 2)
+    ext = _wrapped(x, -(size // 2), n + size - 1)
     out = np.empty(n)
     tmp = 0.0
     for j in range(size):
-        tmp += x[(start + j) % n]
+        tmp += ext[j]
     out[0] = tmp / size
     for i in range(1, n):
-        tmp += x[(start + i + size - 1) % n] - x[(start + i - 1) % n]
+        tmp += ext[i + size - 1] - ext[i - 1]
         out[i] = tmp / size
+    return out
+
+
+@kernel
+def _wrapped(x: NDArray[np.float64], start: int, m: int) -> NDArray[np.float64]:
+    """``m`` samples of ``x`` around the circle from index ``start`` (may be negative)."""
+    n = x.size
+    out = np.empty(m)
+    j = start % n
+    for i in range(m):
+        out[i] = x[j]
+        j = j + 1 if j < n - 1 else 0
     return out
 
 
@@ -462,19 +476,20 @@ def _extreme_wrap(
     ``i - size // 2 - origin`` .. ``+ size - 1``), by van Herk / Gil-Werman's running
     extremes over blocks of ``size``: exact, whatever the order."""
     n = x.size
-    start = -(size // 2) - origin
     m = n + size - 1
-    ext = np.empty(m)
-    for j in range(m):
-        ext[j] = x[(start + j) % n]
+    ext = _wrapped(x, -(size // 2) - origin, m)
     sign = 1.0 if is_max else -1.0
     fwd, bwd = np.empty(m), np.empty(m)
-    for j in range(m):
-        e = sign * ext[j]
-        fwd[j] = e if j % size == 0 or e > fwd[j - 1] else fwd[j - 1]
-    for j in range(m - 1, -1, -1):
-        e = sign * ext[j]
-        bwd[j] = e if j == m - 1 or (j + 1) % size == 0 or e > bwd[j + 1] else bwd[j + 1]
+    for b in range(0, m, size):  # blocks of size: running extremes either way
+        end = min(b + size, m)
+        fwd[b] = sign * ext[b]
+        for j in range(b + 1, end):
+            e = sign * ext[j]
+            fwd[j] = e if e > fwd[j - 1] else fwd[j - 1]
+        bwd[end - 1] = sign * ext[end - 1]
+        for j in range(end - 2, b - 1, -1):
+            e = sign * ext[j]
+            bwd[j] = e if e > bwd[j + 1] else bwd[j + 1]
     out = np.empty(n)
     for i in range(n):
         a, b = bwd[i], fwd[i + size - 1]
@@ -701,10 +716,8 @@ def _follow(
     b0, size, more = 0, _FOLLOW_BATCH, iter(_FOLLOW_MORE)
     while b0 < len(ts_all) and not lost:
         ts = ts_all[b0 : b0 + size]
-        pts = np.empty((len(ts), len(offs), 2))
-        for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-            np.add((start[c] + ts * direction[c])[:, None], across[c], out=pts[:, :, c])
-        vals = bilinear(image, to_px(pts.reshape(-1, 2))).reshape(len(ts), len(offs))
+        pts = _grid(start[0] + ts * direction[0], start[1] + ts * direction[1], *across)
+        vals = bilinear(image, to_px(pts)).reshape(len(ts), len(offs))
         cb, wb, kb = np.empty(len(ts)), np.empty(len(ts)), np.empty(len(ts), np.int64)
         count, expect, prev_w, missed, lost = _follow_batch(
             vals, offs, step_o, width, to_hub, expect, prev_w, missed, cb, wb, kb
@@ -720,6 +733,19 @@ def _follow(
     ts = ts_all[np.concatenate(at)]
     out = (start[None, :] + ts[:, None] * direction[None, :]) + cs[:, None] * n[None, :]
     return out, np.concatenate(widths)
+
+
+@kernel
+def _grid(
+    x: NDArray[np.float64], y: NDArray[np.float64], dx: NDArray[np.float64], dy: NDArray
+) -> NDArray[np.float64]:
+    """Points (K * M, 2): each of (x, y) (K) plus each of (dx, dy) (M), row by row."""
+    out = np.empty((x.size * dx.size, 2))
+    for k in range(x.size):
+        for j in range(dx.size):
+            out[k * dx.size + j, 0] = x[k] + dx[j]
+            out[k * dx.size + j, 1] = y[k] + dy[j]
+    return out
 
 
 @kernel
