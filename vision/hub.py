@@ -22,20 +22,45 @@ from numpy.typing import NDArray
 from vision.centreline import correlation_inflation
 from vision.errors import FrameFailure
 from vision.jit import kernel
-from vision.locate import Rough, ToPx
-from vision.sampling import _bilinear, _median
+from vision.locate import Rough, ToPx, _grid
+from vision.sampling import _bilinear, _median, _np_sum
 
 
 def rough_axis(rough: Rough) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Unit direction (back to clamp), normal and offset along the normal of the line
     through the hub's rough profile centres and the rough clamp (least squares)."""
     hub = rough.hub if len(rough.hub) else rough.hub_back[None, :]
-    pts = np.vstack([hub, rough.clamp[None, :]])
-    c = pts.mean(axis=0)
-    _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
-    e = vt[0] if vt[0] @ (rough.clamp - rough.hub_back) > 0 else -vt[0]
+    cx, cy, ux, uy = _major_axis(
+        np.ascontiguousarray(hub, dtype=np.float64), float(rough.clamp[0]), float(rough.clamp[1])
+    )
+    e = np.array([ux, uy])
+    if not e @ (rough.clamp - rough.hub_back) > 0:
+        e = -e
     n = np.array([-e[1], e[0]])
-    return e, n, float(c @ n)
+    return e, n, cx * float(n[0]) + cy * float(n[1])
+
+
+@kernel
+def _major_axis(
+    hub: NDArray[np.float64], px: float, py: float
+) -> tuple[float, float, float, float]:
+    """Centroid and unit major axis (either sense) of the points ``hub`` (N, 2) and
+    (px, py): the principal direction of their scatter, in closed form."""
+    m = hub.shape[0] + 1
+    cx, cy = 0.0, 0.0
+    for i in range(hub.shape[0]):
+        cx += hub[i, 0]
+        cy += hub[i, 1]
+    cx, cy = (cx + px) / m, (cy + py) / m
+    sxx, syy, sxy = 0.0, 0.0, 0.0
+    for i in range(m):
+        dx = (hub[i, 0] if i < m - 1 else px) - cx
+        dy = (hub[i, 1] if i < m - 1 else py) - cy
+        sxx += dx * dx
+        syy += dy * dy
+        sxy += dx * dy
+    th = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+    return cx, cy, math.cos(th), math.sin(th)
 
 
 def hub_axis(
@@ -256,10 +281,8 @@ def end_edge(
     the beam's tip."""
     step = 0.25 * px_m
     t = np.arange(guess - reach, guess + reach, step)
-    pts = np.empty((len(lateral), len(t), 2))
-    for c in range(2):  # x and y apart: broadcasting over a last axis of 2 is slow
-        np.add(origin[c] + t * e[c], (lateral * n[c])[:, None], out=pts[:, :, c])
-    px = np.ascontiguousarray(to_px(pts.reshape(-1, 2)), dtype=np.float64)
+    pts = _grid(lateral * n[0], lateral * n[1], origin[0] + t * e[0], origin[1] + t * e[1])
+    px = np.ascontiguousarray(to_px(pts), dtype=np.float64)
     centre, total = _end_edge(np.ascontiguousarray(image), px, len(lateral), round(3.0 / 0.25))
     if total != total:  # NaN off the image
         raise FrameFailure("clamp or tip outside the image")
@@ -293,12 +316,12 @@ def _end_edge(
         if d > top:
             peak, top = j, d
     lo, hi = max(peak - half, 0), min(peak + half, m - 2)
-    total, moment = 0.0, 0.0
+    d, dk = np.empty(hi - lo + 1), np.empty(hi - lo + 1)
     for k in range(lo, hi + 1):
-        d = prof[k] - prof[k + 1]
-        if d > 0:
-            total += d
-            moment += d * (k + 0.5)
+        step = prof[k] - prof[k + 1]
+        d[k - lo] = step if step > 0 else 0.0
+        dk[k - lo] = d[k - lo] * (k + 0.5)
+    total = _np_sum(d, 0, d.size)  # numpy's sums (pairwise)
     if total <= 0.0:
         return math.nan, total
-    return moment / total, total
+    return _np_sum(dk, 0, dk.size) / total, total

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from vision.errors import FrameFailure
 from vision.jit import kernel
-from vision.sampling import BilinearPlan, _median, _select, bilinear, median
+from vision.sampling import BilinearPlan, _median, _np_sum, _select, bilinear, median
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -666,13 +666,33 @@ def _strip_end(
     d /= np.linalg.norm(d)
     t = np.arange(-width, 4.0 * width, 0.5 * px_m)
     v = bilinear(image, to_px(last[None, :] + t[:, None] * d[None, :]))
-    if not np.isfinite(v[0]):
-        return last
-    if not math.isfinite(float(v.sum())):  # NaN off the image only
-        v = np.where(np.isfinite(v), v, np.nanmin(v))
-    thr = 0.5 * (v[: int(width / (0.5 * px_m))].mean() + v.min())
-    below = np.flatnonzero(v[1:] < thr)  # past the first sample
-    return last + (t[int(below[0]) + 1] if below.size else t[-1]) * d
+    k = _strip_end_at(v, int(width / (0.5 * px_m)))
+    return last if k < 0 else last + t[k] * d
+
+
+@kernel
+def _strip_end_at(v: NDArray[np.float64], inside: int) -> int:
+    """:func:`_strip_end` along samples ``v`` (NaN off the image) whose first
+    ``inside`` lie on the strip: the first sample past the first below half way from
+    those samples' mean to the darkest (the last when none is), -1 when the first
+    sample is off the image. NaN samples are taken as the darkest."""
+    n = v.size
+    if not math.isfinite(v[0]):
+        return -1
+    low = math.inf
+    for i in range(n):
+        if v[i] < low:  # NaN fails
+            low = v[i]
+    w = v.copy()
+    for i in range(n):
+        if not math.isfinite(w[i]):
+            w[i] = low
+    inside = min(inside, n)
+    thr = 0.5 * (_np_sum(w, 0, inside) / inside + low)  # numpy's mean (pairwise sum)
+    for i in range(1, n):
+        if w[i] < thr:
+            return i
+    return n - 1
 
 
 #: Cross-profiles sampled at a time by :func:`_follow`: a first batch, then batches

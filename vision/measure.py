@@ -47,9 +47,10 @@ from vision.edges import strip_edges_many
 from vision.errors import FrameFailure, ParameterError
 from vision.frame_measurement import FrameMeasurement
 from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
+from vision.jit import kernel
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import bilinear, median, unit_step_gradient
+from vision.sampling import _median, bilinear, median, unit_step_gradient
 
 log = logging.getLogger(__name__)
 
@@ -698,16 +699,19 @@ class Measurer:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The beam's edge points in the hub frame (a from the clamp along e, b along n),
         those clear of the shoulders, named by side: left (b above the other) first."""
-        da, db = pa - clamp, pb - clamp
-        aa, ab = da @ e, db @ e
-        a0 = self._beam_start(hub_w)
-        k = (aa > a0) & (ab > a0)
-        aa, ab = aa[k], ab[k]
-        if len(aa) < 5 or aa.max() < 0.3 * length:
+        ha, hb, amax, swap = _beam_frame_points(
+            np.ascontiguousarray(pa, dtype=np.float64),
+            np.ascontiguousarray(pb, dtype=np.float64),
+            float(clamp[0]),
+            float(clamp[1]),
+            float(e[0]),
+            float(e[1]),
+            float(n[0]),
+            float(n[1]),
+            self._beam_start(hub_w),
+        )
+        if len(ha) < 5 or amax < 0.3 * length:
             raise FrameFailure("beam too short in view")
-        ba, bb = (da @ n)[k], (db @ n)[k]
-        ha, hb = np.column_stack([aa, ba]), np.column_stack([ab, bb])
-        swap = median(ba - bb) < 0
         return (hb, ha) if swap else (ha, hb)
 
     def _tip(
@@ -744,6 +748,40 @@ class Measurer:
         a_tip = a_ref + dist * t[0]
         b_tip = b_ref + dist * t[1]
         return float(a_tip), float(b_tip)
+
+
+@kernel
+def _beam_frame_points(
+    pa: NDArray[np.float64],
+    pb: NDArray[np.float64],
+    cx: float,
+    cy: float,
+    ex: float,
+    ey: float,
+    nx: float,
+    ny: float,
+    a0: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float, bool]:
+    """:meth:`Measurer._beam_frame` of the paired edge points ``pa``, ``pb`` (N, 2)
+    about the clamp (cx, cy) along (ex, ey) and (nx, ny): the pairs with both beyond
+    ``a0`` (a, b each), the largest a of ``pa``'s (-inf: none) and whether ``pb`` is the
+    left side (the median of b_a - b_b negative)."""
+    ha, hb = np.empty((pa.shape[0], 2)), np.empty((pa.shape[0], 2))
+    m = 0
+    amax = -math.inf
+    for i in range(pa.shape[0]):
+        dxa, dya = pa[i, 0] - cx, pa[i, 1] - cy
+        dxb, dyb = pb[i, 0] - cx, pb[i, 1] - cy
+        aa, ab = dxa * ex + dya * ey, dxb * ex + dyb * ey
+        if aa > a0 and ab > a0:
+            ha[m, 0], ha[m, 1] = aa, dxa * nx + dya * ny
+            hb[m, 0], hb[m, 1] = ab, dxb * nx + dyb * ny
+            amax = max(amax, aa)
+            m += 1
+    diff = np.empty(m)
+    for i in range(m):
+        diff[i] = ha[i, 1] - hb[i, 1]
+    return ha[:m], hb[:m], amax, _median(diff, True) < 0
 
 
 def _background_slope(

@@ -75,6 +75,72 @@ def _select(w: NDArray[np.float64], k: int, n: int) -> None:
             return
 
 
+@kernel
+def _np_sum(a: NDArray[np.float64], lo: int, n: int) -> float:
+    """``a[lo:lo + n].sum()`` as numpy sums a contiguous float64 array, bit for bit:
+    halves (each a multiple of 8 where it can be) down to blocks of at most 128, each
+    summed eight ways, the halves' sums added up the tree. Walked with a stack, not
+    recursion: a cached kernel calling a recursive one crashes when loaded (numba
+    0.68)."""
+    if n <= 128:
+        return _block_sum(a, lo, n)
+    depth = 64  # the tree is log2(n / 128) + 1 deep
+    node_lo, node_n = np.empty(depth, np.int64), np.empty(depth, np.int64)
+    state = np.zeros(depth, np.int64)  # 0: left half next, 1: right half next, 2: add
+    sums = np.empty(depth)
+    top, done = 0, 0
+    node_lo[0], node_n[0] = lo, n
+    while top >= 0:
+        m = node_n[top]
+        if m <= 128:
+            sums[done] = _block_sum(a, node_lo[top], m)
+            done += 1
+            top -= 1
+            continue
+        half = m // 2
+        half -= half % 8
+        if state[top] == 2:
+            sums[done - 2] = sums[done - 2] + sums[done - 1]
+            done -= 1
+            top -= 1
+            continue
+        first = node_lo[top] if state[top] == 0 else node_lo[top] + half
+        size = half if state[top] == 0 else m - half
+        state[top] += 1
+        top += 1
+        node_lo[top], node_n[top], state[top] = first, size, 0
+    return sums[0]
+
+
+@kernel
+def _block_sum(a: NDArray[np.float64], lo: int, n: int) -> float:
+    """numpy's sum of a block of at most 128: eight running sums added pairwise, then
+    the rest in order (under 8: in order from -0.0)."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
 def unit_step_gradient(x: NDArray[np.float64]) -> NDArray[np.float64]:
     """``np.gradient(x, axis=0)`` for samples one apart (``len(x) >= 2``): central
     differences, one-sided at the ends, without its generic overhead (called on short

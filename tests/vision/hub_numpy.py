@@ -125,3 +125,14 @@ def _along(p: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64
     """Residuals across a straight edge (N, 2) about its mean, ordered along it."""
     c = p - p.mean(axis=0)
     return (c @ n)[np.argsort(c @ e)]
+
+
+def rough_axis_numpy(rough):
+    """The rough axis by the SVD of the centred points (the form before the kernel)."""
+    hub = rough.hub if len(rough.hub) else rough.hub_back[None, :]
+    pts = np.vstack([hub, rough.clamp[None, :]])
+    c = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - c, full_matrices=False)
+    e = vt[0] if vt[0] @ (rough.clamp - rough.hub_back) > 0 else -vt[0]
+    n = np.array([-e[1], e[0]])
+    return e, n, float(c @ n)

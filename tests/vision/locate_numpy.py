@@ -218,3 +218,14 @@ def follow_numpy(vals, offs, width, to_hub, hub_widening):
         widths.append(s.width)
         expect, prev_w = s.centre, s.width
     return found, centres, widths, False
+
+
+def strip_end_numpy(v, inside):
+    """The old _strip_end after its samples: the index of t taken, -1 for the last point."""
+    if not np.isfinite(v[0]):
+        return -1
+    if not math.isfinite(float(v.sum())):
+        v = np.where(np.isfinite(v), v, np.nanmin(v))
+    thr = 0.5 * (v[:inside].mean() + v.min())
+    below = np.flatnonzero(v[1:] < thr)
+    return int(below[0]) + 1 if below.size else len(v) - 1

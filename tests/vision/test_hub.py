@@ -12,9 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from tests.vision.hub_numpy import end_edge_numpy, hub_axis_numpy
+from tests.vision.hub_numpy import end_edge_numpy, hub_axis_numpy, rough_axis_numpy
 from vision.errors import FrameFailure
-from vision.hub import end_edge, hub_axis
+from vision.hub import end_edge, hub_axis, rough_axis
+from vision.locate import Rough
 
 
 def _outcome(fn, *args, **kw):  # type: ignore[no-untyped-def]
@@ -97,3 +98,21 @@ def test_end_edge_is_the_numpy_forms() -> None:
             assert got == pytest.approx(want, rel=1e-12, abs=1e-13), k
             outcomes["edge"] += 1
     assert min(outcomes.values()) >= 10
+
+
+def test_the_rough_axis_is_the_svds() -> None:
+    # the major axis in closed form against the SVD's first right singular vector: the
+    # same line to rounding (both exact for the scatter's 2 x 2 eigenproblem)
+    rng = np.random.default_rng(33)
+    for k in range(300):
+        theta = rng.uniform(-np.pi, np.pi)
+        e = np.array([math.cos(theta), math.sin(theta)])
+        back = rng.normal(0, 0.1, 2)
+        length = rng.uniform(0.01, 0.1)
+        a = np.sort(rng.uniform(0, length, int(rng.integers(0, 30))))
+        hub = back + a[:, None] * e + rng.normal(0, 1e-4, (a.size, 2))
+        clamp = back + (length + rng.uniform(0.001, 0.01)) * e
+        rough = Rough(np.zeros((2, 2)), clamp, back, 0.03, clamp, hub)
+        want, got = rough_axis_numpy(rough), rough_axis(rough)
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-14, err_msg=str(k))

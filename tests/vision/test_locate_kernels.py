@@ -10,12 +10,18 @@ import math
 import numpy as np
 from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
-from tests.vision.locate_numpy import circle_candidates_numpy, find_strip_numpy, follow_numpy
+from tests.vision.locate_numpy import (
+    circle_candidates_numpy,
+    find_strip_numpy,
+    follow_numpy,
+    strip_end_numpy,
+)
 from vision.locate import (
     _HUB_WIDENING,
     _circle_candidates,
     _extreme_wrap,
     _follow_batch,
+    _strip_end_at,
     _uniform_wrap,
     find_strip,
     profile_levels,
@@ -142,3 +148,22 @@ def test_the_top_hats_filters_are_scipys_bit_for_bit() -> None:
             want = f(x, size, mode="wrap", origin=origin)
             np.testing.assert_array_equal(_extreme_wrap(x, size, origin, is_max), want)
     assert math.isnan(_uniform_wrap(np.array([1.0, np.nan]), 1)[1])
+
+
+def test_the_strip_ends_where_the_numpy_form_ends_it() -> None:
+    rng = np.random.default_rng(25)
+    ends = set()
+    for k in range(500):
+        n = int(rng.integers(10, 400))
+        end = int(rng.integers(1, n + 20))  # some strips run past the samples
+        v = 30 + rng.normal(0, 3, n)
+        v[:end] += rng.uniform(0, 200)
+        if k % 4 == 0:
+            v = np.round(v)  # ties at the threshold
+        if k % 5 == 0:
+            v[int(rng.integers(0, n)) :] = np.nan  # off the image, maybe from the start
+        inside = int(rng.integers(1, n // 2 + 2))
+        got = _strip_end_at(v, inside)
+        assert got == strip_end_numpy(v, inside), k
+        ends.add(min(got, 1))
+    assert ends == {-1, 1}

@@ -9,7 +9,7 @@ import pytest
 
 from tests.vision.sampling_numpy import bilinear_numpy
 from vision.errors import ParameterError
-from vision.sampling import BilinearPlan, bilinear, median
+from vision.sampling import BilinearPlan, _np_sum, bilinear, median
 
 
 def test_bilinear_is_the_numpy_form_bit_for_bit() -> None:
@@ -50,3 +50,12 @@ def test_median_selects_numpys_value_on_ties_and_every_size() -> None:
         assert np.isnan(median(y))
     # integers and 2-D input are taken as float64, flattened
     assert median(np.array([[3, 1], [2, 4]])) == 2.5
+
+
+def test_the_kernels_sum_is_numpys_bit_for_bit() -> None:
+    rng = np.random.default_rng(13)
+    for n in [*range(0, 300), 513, 1000, 2049, 10_000]:
+        x = rng.normal(size=n) * 10 ** rng.uniform(-3, 3)
+        lo = int(rng.integers(0, 5))
+        y = np.concatenate([rng.normal(size=lo), x])
+        assert _np_sum(y, lo, n) == x.sum(), n
