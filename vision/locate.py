@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from vision.errors import FrameFailure
 from vision.jit import kernel
-from vision.sampling import BilinearPlan, _median, _np_sum, _select, bilinear, median
+from vision.sampling import BilinearPlan, _median_of, _np_sum, _select, bilinear, median
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -154,7 +154,7 @@ def _find_strip(
             if math.isfinite(v[i]):
                 kept[j] = v[i]
                 j += 1
-        fill = _median(kept, True)
+        fill = _median_of(kept)
         v = v.copy()
         for i in range(n):
             if not math.isfinite(v[i]):
@@ -352,15 +352,8 @@ def _circle_candidates(
     # half to even).
     k = max(3, round(3 * width / step))
     smooth = max(1, round(0.2 * width / step))
-    angle, contrast, wid, ends = _circle_peaks(
-        np.ascontiguousarray(v, dtype=np.float64), phi, k, smooth, step, lo, hi
-    )
-    return [
-        _Candidate(a, c, w, i0, i1)
-        for a, c, w, (i0, i1) in zip(
-            angle.tolist(), contrast.tolist(), wid.tolist(), ends.tolist(), strict=True
-        )
-    ]
+    found = _circle_peaks(np.ascontiguousarray(v, dtype=np.float64), phi, k, smooth, step, lo, hi)
+    return [_Candidate(a, c, w, int(i0), int(i1)) for a, c, w, i0, i1 in found.tolist()]
 
 
 @kernel
@@ -372,52 +365,55 @@ def _circle_peaks(
     step: float,
     lo: float,
     hi: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
-    """:func:`_circle_candidates`: the strips' angles, contrasts, widths and first and
-    last samples above half maximum ((S, 2)), from the circle's samples ``v`` (NaN off
-    the image: set to the others' median, never a peak) with a top-hat of ``k``
+) -> NDArray[np.float64]:
+    """:func:`_circle_candidates`: a row per strip (S, 5), its angle, contrast, width
+    and first and last samples above half maximum, from the circle's samples ``v`` (NaN
+    off the image: set to the others' median, never a peak) with a top-hat of ``k``
     samples on the samples smoothed over ``smooth``."""
     n = v.size
-    ok = np.empty(n, np.bool_)
     finite = 0
     for i in range(n):
-        ok[i] = math.isfinite(v[i])
-        finite += ok[i]
+        finite += math.isfinite(v[i])
+    w = v
     if finite < n:
         if finite < 10:
-            return np.empty(0), np.empty(0), np.empty(0), np.empty((0, 2), np.int64)
+            return np.empty((0, 5))
         kept = np.empty(finite)
         j = 0
         for i in range(n):
-            if ok[i]:
+            if math.isfinite(v[i]):
                 kept[j] = v[i]
                 j += 1
-        fill = _median(kept, True)
-        v = v.copy()
+        fill = _median_of(kept)
+        w = v.copy()
         for i in range(n):
-            if not ok[i]:
-                v[i] = fill
+            if not math.isfinite(v[i]):
+                w[i] = fill
     # Top-hat: brightness above the local floor over k samples, a grey opening of the
     # smoothed samples (erosion, then dilation with the flat element mirrored: origin -1
     # for an even size), all as scipy.ndimage's 1-D filters compute them, around the
     # circle (mode "wrap").
-    sm = _uniform_wrap(v, smooth)
-    floor = _extreme_wrap(_extreme_wrap(sm, k, 0, False), k, -1 if k % 2 == 0 else 0, True)
+    sm = _uniform_wrap(w, smooth)
+    # (window starts and the sign as computed values: a literal argument would compile
+    # another specialisation)
+    start = -(k // 2)
+    floor = _extreme_wrap(_extreme_wrap(sm, k, start, -1.0), k, start + (k % 2 == 0), 1.0)
     top = sm - floor
     dv = np.empty(n - 1)
     for i in range(n - 1):
-        dv[i] = abs(v[i + 1] - v[i])
-    noise = _median(dv, True) + 1.0
+        dv[i] = abs(w[i + 1] - w[i])
+    noise = _median_of(dv) + 1.0
     thr = max(10.0, 5 * noise)
     # Each peak's half-maximum ends: the first samples either side at or below half
     # its height, at most a quarter of the circle away.
     quarter = n // 4
-    angle, contrast, wid = np.empty(n), np.empty(n), np.empty(n)
-    ends = np.empty((n, 2), np.int64)
+    out = np.empty((n, 5))
     m = 0
     for p in range(n):
         t = top[p]
-        if not (ok[p] and t > thr and t >= top[p - 1] and t > top[p + 1 if p + 1 < n else 0]):
+        if not (math.isfinite(v[p]) and t > thr and t >= top[p - 1]):
+            continue
+        if not t > top[p + 1 if p + 1 < n else 0]:
             continue
         half = t / 2
         i0, j = p, p  # j: i0 around the circle
@@ -428,13 +424,13 @@ def _circle_peaks(
         while top[j] > half and i1 - p < quarter:
             i1 += 1
             j = j + 1 if j < n - 1 else 0
-        w = (i1 - i0 - 1) * step
-        if lo <= w <= hi:
-            angle[m] = phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n)
-            contrast[m], wid[m] = t, w
-            ends[m, 0], ends[m, 1] = i0 + 1, i1 - 1
+        width = (i1 - i0 - 1) * step
+        if lo <= width <= hi:
+            out[m, 0] = phi[p] + 0.5 * (i0 + i1 - 2 * p) * (2 * np.pi / n)
+            out[m, 1], out[m, 2] = t, width
+            out[m, 3], out[m, 4] = i0 + 1, i1 - 1
             m += 1
-    return angle[:m], contrast[:m], wid[:m], ends[:m]
+    return out[:m]
 
 
 @kernel
@@ -469,16 +465,15 @@ def _wrapped(x: NDArray[np.float64], start: int, m: int) -> NDArray[np.float64]:
 
 @kernel
 def _extreme_wrap(
-    x: NDArray[np.float64], size: int, origin: int, is_max: bool
+    x: NDArray[np.float64], size: int, start: int, sign: float
 ) -> NDArray[np.float64]:
-    """``scipy.ndimage.maximum_filter1d`` (``is_max``) or ``minimum_filter1d`` of ``x``
-    with ``size`` and ``origin``, mode "wrap" (each output the extreme of the window
-    ``i - size // 2 - origin`` .. ``+ size - 1``), by van Herk / Gil-Werman's running
-    extremes over blocks of ``size``: exact, whatever the order."""
+    """``scipy.ndimage.maximum_filter1d`` (``sign`` 1) or ``minimum_filter1d`` (-1) of
+    ``x`` with ``size``, mode "wrap", each output the extreme of the window from
+    ``i + start`` (``start = -(size // 2) - origin``) .. ``+ size - 1``, by van Herk /
+    Gil-Werman's running extremes over blocks of ``size``: exact, whatever the order."""
     n = x.size
     m = n + size - 1
-    ext = _wrapped(x, -(size // 2) - origin, m)
-    sign = 1.0 if is_max else -1.0
+    ext = _wrapped(x, start, m)
     fwd, bwd = np.empty(m), np.empty(m)
     for b in range(0, m, size):  # blocks of size: running extremes either way
         end = min(b + size, m)
@@ -688,7 +683,7 @@ def _strip_end_at(v: NDArray[np.float64], inside: int) -> int:
         if not math.isfinite(w[i]):
             w[i] = low
     inside = min(inside, n)
-    thr = 0.5 * (_np_sum(w, 0, inside) / inside + low)  # numpy's mean (pairwise sum)
+    thr = 0.5 * (_np_sum(w, inside) / inside + low)  # numpy's mean (pairwise sum)
     for i in range(1, n):
         if w[i] < thr:
             return i

@@ -24,15 +24,21 @@ def median(x: NDArray[np.float64], overwrite_input: bool = False) -> float:
 
 @kernel
 def _median(a: NDArray[np.float64], overwrite: bool) -> float:
-    """:func:`median` of the contiguous ``a`` (selected in place with ``overwrite``):
-    the middle order statistic, or the mean of the two (``0.5 * (lo + hi)``, numpy's)."""
-    n = a.size
+    """:func:`median` of the contiguous ``a`` (selected in place with ``overwrite``)."""
+    return _median_of(a if overwrite else a.copy())
+
+
+@kernel
+def _median_of(w: NDArray[np.float64]) -> float:
+    """:func:`median` of ``w``, selected in place: the middle order statistic, or the
+    mean of the two (``0.5 * (lo + hi)``, numpy's). Kernels call this one: a literal
+    argument (``_median(a, True)``) would compile another specialisation."""
+    n = w.size
     if n == 0:
         return math.nan
     for i in range(n):
-        if a[i] != a[i]:
+        if w[i] != w[i]:
             return math.nan
-    w = a if overwrite else a.copy()
     k = n // 2
     _select(w, k, n)
     if n % 2:
@@ -76,20 +82,17 @@ def _select(w: NDArray[np.float64], k: int, n: int) -> None:
 
 
 @kernel
-def _np_sum(a: NDArray[np.float64], lo: int, n: int) -> float:
-    """``a[lo:lo + n].sum()`` as numpy sums a contiguous float64 array, bit for bit:
-    halves (each a multiple of 8 where it can be) down to blocks of at most 128, each
-    summed eight ways, the halves' sums added up the tree. Walked with a stack, not
-    recursion: a cached kernel calling a recursive one crashes when loaded (numba
-    0.68)."""
-    if n <= 128:
-        return _block_sum(a, lo, n)
+def _np_sum(a: NDArray[np.float64], n: int) -> float:
+    """``a[:n].sum()`` as numpy sums a contiguous float64 array, bit for bit: halves
+    (each a multiple of 8 where it can be) down to blocks of at most 128, each summed
+    eight ways, the halves' sums added up the tree. Walked with a stack, not recursion:
+    a cached kernel calling a recursive one crashes when loaded (numba 0.68)."""
     depth = 64  # the tree is log2(n / 128) + 1 deep
-    node_lo, node_n = np.empty(depth, np.int64), np.empty(depth, np.int64)
+    node_lo, node_n = np.zeros(depth, np.int64), np.empty(depth, np.int64)
     state = np.zeros(depth, np.int64)  # 0: left half next, 1: right half next, 2: add
     sums = np.empty(depth)
     top, done = 0, 0
-    node_lo[0], node_n[0] = lo, n
+    node_n[0] = n
     while top >= 0:
         m = node_n[top]
         if m <= 128:

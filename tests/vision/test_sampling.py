@@ -58,4 +58,4 @@ def test_the_kernels_sum_is_numpys_bit_for_bit() -> None:
         x = rng.normal(size=n) * 10 ** rng.uniform(-3, 3)
         lo = int(rng.integers(0, 5))
         y = np.concatenate([rng.normal(size=lo), x])
-        assert _np_sum(y, lo, n) == x.sum(), n
+        assert _np_sum(y[lo:], n) == x.sum(), n
