@@ -18,7 +18,6 @@ damaged bytes as its errors do.
 
 from __future__ import annotations
 
-import math
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -30,6 +29,7 @@ from numpy.typing import NDArray
 
 from vision.codec import MAX_SIDE_PX, RST_INTERVAL_MCU
 from vision.errors import DecodeError, ParameterError
+from vision.jit import kernel
 
 _MCU_PX = 8  # a single-component scan's MCU is one 8 x 8 block
 # the spliced JPEG's height is a 16-bit field: at most this many segments in one splice
@@ -76,87 +76,130 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     """The segment layout of ``data``, or None when it cannot be decoded in parts (not a
     JPEG, not baseline, not one component, no restart interval, an interval that does
     not divide the MCU row, restart markers missing, out of order or damaged)."""
-    if data[:2] != b"\xff\xd8":
-        return None
-    i = 2
-    interval = 0
-    size: tuple[int, int] | None = None
-    sof_at = -1
-    n = len(data)
-    while True:
-        while i < n and data[i] == 0xFF and i + 1 < n and data[i + 1] == 0xFF:
-            i += 1  # fill bytes
-        if i + 4 > n or data[i] != 0xFF:
-            return None
-        marker = data[i + 1]
-        (length,) = struct.unpack(">H", data[i + 2 : i + 4])
-        if length < 2 or i + 2 + length > n:
-            return None
-        body = data[i + 4 : i + 2 + length]
-        if marker in (0xC0, 0xC1):  # baseline / extended sequential, Huffman
-            if len(body) < 6 or body[5] != 1:
-                return None  # not a single component
-            height, width = struct.unpack(">HH", body[1:5])
-            size = (width, height)
-            sof_at = i + 5
-        elif marker in (0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF):
-            return None  # progressive, lossless, hierarchical or arithmetic coded
-        elif marker == 0xDD:
-            if len(body) != 2:
-                return None
-            (interval,) = struct.unpack(">H", body)
-        elif marker == 0xDA:
-            scan_at = i + 2 + length
-            break
-        elif marker in (0xD8, 0xD9, *range(0xD0, 0xD8)):
-            return None
-        i += 2 + length
-    if size is None or interval == 0:
-        return None
-    width, height = size
-    if not 0 < width <= MAX_SIDE_PX or not 0 < height <= MAX_SIDE_PX:
-        return None
-    mcu_cols = math.ceil(width / _MCU_PX)
-    mcu_rows = math.ceil(height / _MCU_PX)
-    if mcu_cols % interval:
-        return None
-    per_row = mcu_cols // interval
-    n_seg = per_row * mcu_rows
-    # Every 0xFF in entropy-coded data is followed by 0x00 (stuffing), a restart marker
-    # or the marker that ends the scan.
     buf = np.frombuffer(data, dtype=np.uint8)
-    ff = np.flatnonzero(buf[scan_at:-1] == 0xFF) + scan_at
-    marks = ff[buf[ff + 1] != 0]
-    kinds = buf[marks + 1]
-    is_rst = (kinds & 0xF8) == 0xD0
-    end_of_scan = np.flatnonzero(~is_rst)
-    if end_of_scan.size == 0 or kinds[end_of_scan[0]] != 0xD9:
-        return None  # the scan must end at EOI (one scan: baseline gray)
-    rst = marks[: end_of_scan[0]]
-    if rst.size != n_seg - 1:
+    got = _parse_layout(buf, MAX_SIDE_PX)
+    if got[0] == 0:
         return None
-    numbers = kinds[: rst.size]  # each RSTn: 0xD0..0xD7 in turn from RST0
-    if rst.size and (numbers[0] != 0xD0 or np.any(((numbers[1:] - numbers[:-1]) & 7) != 1)):
-        return None
-    stop = int(marks[end_of_scan[0]])
-    starts = np.empty(n_seg, dtype=np.intp)
-    starts[0] = scan_at
-    starts[1:] = rst + 2
-    ends = np.empty(n_seg, dtype=np.intp)
-    ends[:-1] = rst
-    ends[-1] = stop
+    width, height, interval, sof_at, scan_at, starts, ends = got
+    mcu_cols = (width + _MCU_PX - 1) // _MCU_PX
     return JpegLayout(
         data=data,
         width_px=width,
         height_px=height,
         interval=interval,
-        per_row=per_row,
-        mcu_rows=mcu_rows,
+        per_row=mcu_cols // interval,
+        mcu_rows=(height + _MCU_PX - 1) // _MCU_PX,
         header=data[:scan_at],
         sof_size_at=sof_at,
         starts=starts,
         ends=ends,
     )
+
+
+@kernel
+def _parse_layout(
+    buf: NDArray[np.uint8], max_side: int
+) -> tuple[int, int, int, int, int, NDArray[np.intp], NDArray[np.intp]]:
+    """:func:`jpeg_layout`'s parse: ``(width, height, interval, offset of the frame
+    header's size, offset of the scan, starts, ends)``, width 0 when there is none.
+    The markers before the scan one by one; then, in the entropy-coded data, every
+    0xFF is followed by 0x00 (stuffing), a restart marker or the marker that ends the
+    scan, which must be EOI (one scan: baseline gray)."""
+    nothing = (0, 0, 0, 0, 0, np.zeros(0, np.intp), np.zeros(0, np.intp))
+    n = buf.size
+    if n < 2 or buf[0] != 0xFF or buf[1] != 0xD8:
+        return nothing
+    i = 2
+    interval = 0
+    width = height = 0
+    have_size = False
+    sof_at = -1
+    scan_at = 0
+    while True:
+        while i < n and buf[i] == 0xFF and i + 1 < n and buf[i + 1] == 0xFF:
+            i += 1  # fill bytes
+        if i + 4 > n or buf[i] != 0xFF:
+            return nothing
+        marker = int(buf[i + 1])
+        length = int(buf[i + 2]) * 256 + int(buf[i + 3])
+        if length < 2 or i + 2 + length > n:
+            return nothing
+        body = i + 4
+        if marker == 0xC0 or marker == 0xC1:  # baseline / extended sequential, Huffman
+            if length - 2 < 6 or buf[body + 5] != 1:
+                return nothing  # not a single component
+            height = int(buf[body + 1]) * 256 + int(buf[body + 2])
+            width = int(buf[body + 3]) * 256 + int(buf[body + 4])
+            have_size = True
+            sof_at = i + 5
+        elif 0xC2 <= marker <= 0xCF and marker != 0xC4 and marker != 0xC8 and marker != 0xCC:
+            return nothing  # progressive, lossless, hierarchical or arithmetic coded
+        elif marker == 0xDD:
+            if length - 2 != 2:
+                return nothing
+            interval = int(buf[body]) * 256 + int(buf[body + 1])
+        elif marker == 0xDA:
+            scan_at = i + 2 + length
+            break
+        elif 0xD0 <= marker <= 0xD9:  # RSTn, SOI, EOI
+            return nothing
+        i += 2 + length
+    if not have_size or interval == 0:
+        return nothing
+    if not 0 < width <= max_side or not 0 < height <= max_side:
+        return nothing
+    mcu_cols = (width + 7) // 8
+    mcu_rows = (height + 7) // 8
+    if mcu_cols % interval:
+        return nothing
+    n_seg = mcu_cols // interval * mcu_rows
+    # Every 0xFF after the scan's header is followed by 0x00 (stuffing), RSTn (0xD0..0xD7
+    # in turn from RST0) or the scan's end, which must be EOI. The data eight bytes at a
+    # time (little-endian words), the 0xFF bytes of a word as its complement's zero
+    # bytes, in order (the lowest bit of the mask): the markers come at random, so
+    # branching byte by byte would cost more in mispredicted branches than the work.
+    nw = n // 8
+    words = buf[: 8 * nw].view(np.uint64)
+    low7, high = np.uint64(0x7F7F7F7F7F7F7F7F), np.uint64(0x8080808080808080)
+    byte_of = np.uint64(0x0001020304050607)  # (bit 8j of a power of two) * this >> 56: j
+    starts = np.empty(n_seg, dtype=np.intp)
+    ends = np.empty(n_seg, dtype=np.intp)
+    starts[0] = scan_at
+    n_rst = 0
+    stop = -1
+    for k in range(scan_at // 8, (n - 2) // 8 + 1):
+        if k < nw:
+            x = ~words[k]
+        else:  # the last bytes, short of a word
+            x = ~np.uint64(0)
+            for j in range(n - 8 * k):
+                x ^= np.uint64(buf[8 * k + j]) << np.uint64(8 * j)
+        ff = ~(((x & low7) + low7) | x) & high  # the high bit of each zero byte of x
+        while ff:
+            j = int(((ff & (~ff + np.uint64(1))) >> np.uint64(7)) * byte_of >> np.uint64(56))
+            ff &= ff - np.uint64(1)
+            p = 8 * k + j
+            if p < scan_at or p >= n - 1:
+                continue
+            kind = int(buf[p + 1])
+            if kind == 0:
+                continue
+            if kind != 0xD0 + (n_rst & 7):  # not the next RSTn
+                if kind & 0xF8 == 0xD0 or kind != 0xD9:
+                    return nothing
+                stop = p
+                break
+            if n_rst == n_seg - 1:
+                return nothing
+            ends[n_rst] = p
+            n_rst += 1
+            starts[n_rst] = p + 2
+        if stop >= 0:
+            break
+    if stop < 0 or n_rst != n_seg - 1:
+        return nothing
+    ends[n_seg - 1] = stop
+    return width, height, interval, sof_at, scan_at, starts, ends
 
 
 def segments_covering(layout: JpegLayout, mask_px: NDArray[np.bool_]) -> NDArray[np.intp]:
