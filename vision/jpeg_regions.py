@@ -18,7 +18,6 @@ damaged bytes as its errors do.
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
@@ -34,7 +33,6 @@ from vision.jit import kernel
 _MCU_PX = 8  # a single-component scan's MCU is one 8 x 8 block
 # the spliced JPEG's height is a 16-bit field: at most this many segments in one splice
 _MAX_SEGMENTS = 65535 // _MCU_PX
-_EOI = b"\xff\xd9"
 #: A splice's rows are about this wide (px): several narrow segments side by side.
 _ROW_PX = 1024
 
@@ -247,10 +245,10 @@ _UINT_OF_BYTES = {1: np.uint8, 2: np.uint16, 4: np.uint32}
 def splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytes:
     """A baseline JPEG of the given segments (ascending raster indices), one MCU row each,
     ``interval`` MCUs wide."""
-    return bytes(_splice(layout, segments))
+    return _splice(layout, segments).tobytes()
 
 
-def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> bytearray:
+def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> NDArray[np.uint8]:
     """:func:`splice`, ``across`` segments to a row (``len(segments)`` a multiple)."""
     seg_w, seg_h = layout.segment_px
     seg = np.asarray(segments, dtype=np.intp)
@@ -259,34 +257,69 @@ def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> 
         raise ParameterError(
             "segments", f"must number 1..{_MAX_SEGMENTS * across}, {across} to a row, got {n}"
         )
-    head = bytearray(layout.header)
-    struct.pack_into(">HH", head, layout.sof_size_at, n // across * seg_h, across * seg_w)
-    # Runs of consecutive segments are one stretch of the scan each, their restart
-    # markers in it; every segment after the first follows its marker (two bytes),
-    # renumbered RST0..7 in the splice's order once the bytes are joined.
-    brk = np.flatnonzero(seg[1:] != seg[:-1] + 1) + 1
-    lo = layout.starts[seg[np.concatenate(([0], brk))]] - 2
-    lo[0] += 2
-    hi = layout.ends[seg[np.concatenate((brk - 1, [n - 1]))]]
-    scan = memoryview(layout.data)
-    out = bytearray().join(
-        [head, *[scan[a:b] for a, b in zip(lo.tolist(), hi.tolist(), strict=True)], _EOI]
+    out = _spliced(
+        np.frombuffer(layout.data, dtype=np.uint8),
+        layout.starts,
+        layout.ends,
+        seg,
+        layout.sof_size_at,
+        n // across * seg_h,
+        across * seg_w,
     )
-    if n > 1:
-        lens = layout.ends[seg[:-1]] - layout.starts[seg[:-1]]
-        at = len(head) + np.cumsum(lens) + 2 * np.arange(1, n) - 1
-        np.frombuffer(out, dtype=np.uint8)[at] = 0xD0 + (np.arange(n - 1) & 7)
+    if out.size == 0:
+        raise ParameterError("segments", f"must be 0..{len(layout.starts) - 1}")
+    return out
+
+
+@kernel
+def _spliced(
+    data: NDArray[np.uint8],
+    starts: NDArray[np.intp],
+    ends: NDArray[np.intp],
+    seg: NDArray[np.intp],
+    sof_at: int,
+    height_px: int,
+    width_px: int,
+) -> NDArray[np.uint8]:
+    """The bytes of a splice: the header up to the scan (``starts[0]`` bytes) with the
+    frame's size rewritten, each segment's data after an ``RSTn`` renumbered in the
+    splice's order (0..7 in turn), EOI; empty when a segment is not one of the layout's."""
+    n_all = starts.size
+    head = starts[0]
+    total = head + 2 * seg.size  # the restart markers and EOI
+    for j in range(seg.size):
+        if not 0 <= seg[j] < n_all:
+            return np.zeros(0, dtype=np.uint8)
+        total += ends[seg[j]] - starts[seg[j]]
+    out = np.empty(total, dtype=np.uint8)
+    out[:head] = data[:head]
+    out[sof_at] = (height_px >> 8) & 0xFF
+    out[sof_at + 1] = height_px & 0xFF
+    out[sof_at + 2] = (width_px >> 8) & 0xFF
+    out[sof_at + 3] = width_px & 0xFF
+    o = head
+    for j in range(seg.size):
+        if j:
+            out[o] = 0xFF
+            out[o + 1] = 0xD0 + ((j - 1) & 7)
+            o += 2
+        a = starts[seg[j]]
+        m = ends[seg[j]] - a
+        out[o : o + m] = data[a : a + m]
+        o += m
+    out[o] = 0xFF
+    out[o + 1] = 0xD9
     return out
 
 
 def _decoded(
     layout: JpegLayout, segments: NDArray[np.intp]
-) -> Iterator[tuple[NDArray[np.intp], NDArray[np.uint8]]]:
-    """The given segments decoded, as ``(segments', pixels (rows, across, 8, 8 *
-    interval))`` per splice: each splice's rows hold ``across`` segments side by side
-    (about :data:`_ROW_PX` wide: the decoder's cost per output line, not per segment,
-    is what narrow segments one to a row pay for), the last row filled up with its
-    last segment again; ``segments'`` in the pixels' order, so padded too."""
+) -> Iterator[tuple[NDArray[np.intp], NDArray[np.uint8], int]]:
+    """The given segments decoded, as ``(segments', pixels, across)`` per splice: each
+    splice's rows hold ``across`` segments side by side (about :data:`_ROW_PX` wide: the
+    decoder's cost per output line, not per segment, is what narrow segments one to a
+    row pay for), the last row filled up with its last segment again; ``segments'`` in
+    the pixels' order, so padded too."""
     seg_w, seg_h = layout.segment_px
     segments = np.asarray(segments, dtype=np.intp)
     across = max(1, _ROW_PX // seg_w)
@@ -301,7 +334,7 @@ def _decoded(
         img = _imdecode(_splice(layout, part, a))
         if img.shape != (rows * seg_h, a * seg_w):
             raise DecodeError(len(layout.data))
-        yield part, img.reshape(rows, seg_h, a, seg_w).transpose(0, 2, 1, 3)
+        yield part, img, a
 
 
 def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.uint8]:
@@ -309,30 +342,53 @@ def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[n
     ``(8 * len(segments), 8 * interval)``. Raises :class:`~vision.errors.DecodeError`
     when they do not decode."""
     seg_w, seg_h = layout.segment_px
-    # only the last splice is padded: its extra segments are cut off the end
-    parts = [pixels.reshape(-1, seg_h, seg_w) for _, pixels in _decoded(layout, segments)]
-    if not parts:
-        return np.zeros((0, seg_w), np.uint8)
-    out = parts[0] if len(parts) == 1 else np.concatenate(parts)
-    return out[: len(segments)].reshape(-1, seg_w)
+    out = np.empty((len(segments) * seg_h, seg_w), dtype=np.uint8)
+    done = 0
+    for part, pixels, across in _decoded(layout, segments):
+        # only the last splice is padded: its extra segments are not copied
+        at = np.arange(done, min(done + len(part), len(segments)), dtype=np.intp)
+        _put_segments(out, 1, at, pixels, across, seg_h, seg_w)
+        done += len(at)
+    return out
 
 
 def decode_into(layout: JpegLayout, canvas: NDArray[np.uint8], segments: NDArray[np.intp]) -> None:
     """Decode the given segments (ascending raster indices) into their place in a
     :func:`blank_canvas` (in place; what is there already stays where no segment is
     given). Raises :class:`~vision.errors.DecodeError` when they do not decode."""
-    grid = _grid(layout, canvas)
-    for part, pixels in _decoded(layout, segments):
-        at = part.reshape(pixels.shape[:2])
-        grid[at // layout.per_row, at % layout.per_row] = pixels
+    _check_canvas(layout, canvas)
+    seg_w, seg_h = layout.segment_px
+    for part, pixels, across in _decoded(layout, segments):
+        _put_segments(canvas, layout.per_row, part, pixels, across, seg_h, seg_w)
 
 
-def _grid(layout: JpegLayout, canvas: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """A canvas as [segment row, segment col, row, col] (a view)."""
+@kernel
+def _put_segments(
+    canvas: NDArray[np.uint8],
+    per_row: int,
+    at: NDArray[np.intp],
+    pixels: NDArray[np.uint8],
+    across: int,
+    seg_h: int,
+    seg_w: int,
+) -> None:
+    """Copy the segments of ``pixels`` (``across`` to a row, in raster order) to their
+    places ``at`` in ``canvas`` (``per_row`` to a row), as many as ``at`` holds."""
+    for j in range(at.size):
+        r0 = at[j] // per_row * seg_h
+        c0 = at[j] % per_row * seg_w
+        pr = j // across * seg_h
+        pc = j % across * seg_w
+        for y in range(seg_h):
+            canvas[r0 + y, c0 : c0 + seg_w] = pixels[pr + y, pc : pc + seg_w]
+
+
+def _check_canvas(layout: JpegLayout, canvas: NDArray[np.uint8]) -> None:
     seg_w, seg_h = layout.segment_px
     if canvas.shape != (layout.mcu_rows * seg_h, layout.per_row * seg_w):
         raise ParameterError("canvas", f"must be the layout's blank_canvas, got {canvas.shape}")
-    return canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
+    if not canvas.flags.c_contiguous or canvas.dtype != np.uint8:
+        raise ParameterError("canvas", "must be a C-contiguous uint8 array (a blank_canvas)")
 
 
 def blank_canvas(layout: JpegLayout, fill: int) -> NDArray[np.uint8]:
@@ -351,11 +407,14 @@ def paste(
     """Put decoded segments (:func:`decode_segments`) in their place in a
     :func:`blank_canvas` (in place)."""
     seg_w, seg_h = layout.segment_px
-    grid = _grid(layout, canvas)
-    segments = np.asarray(segments, dtype=np.intp)
-    grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
-        len(segments), seg_h, seg_w
-    )
+    _check_canvas(layout, canvas)
+    seg = np.asarray(segments, dtype=np.intp)
+    if seg.size and not (0 <= seg.min() and seg.max() < len(layout.starts)):
+        raise ParameterError("segments", f"must be 0..{len(layout.starts) - 1}")
+    if strip.size != seg.size * seg_h * seg_w:
+        raise ParameterError("strip", f"must hold {seg.size} segments of {seg_h} x {seg_w}")
+    pixels = np.ascontiguousarray(strip, dtype=np.uint8).reshape(-1, seg_w)
+    _put_segments(canvas, layout.per_row, seg, pixels, 1, seg_h, seg_w)
 
 
 def image_of(layout: JpegLayout, canvas: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -387,7 +446,9 @@ def decode_reduced(data: bytes, reduction: int) -> NDArray[np.uint8]:
     return _imdecode(data, flags[reduction])
 
 
-def _imdecode(data: bytes | bytearray, flags: int = cv2.IMREAD_GRAYSCALE) -> NDArray[np.uint8]:
+def _imdecode(
+    data: bytes | NDArray[np.uint8], flags: int = cv2.IMREAD_GRAYSCALE
+) -> NDArray[np.uint8]:
     buf = np.frombuffer(data, dtype=np.uint8)
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)

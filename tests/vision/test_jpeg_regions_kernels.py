@@ -10,8 +10,18 @@ import struct
 import numpy as np
 import pytest
 
-from vision.codec import MAX_SIDE_PX, encode
-from vision.jpeg_regions import jpeg_layout
+import vision.jpeg_regions as jr
+from vision.codec import MAX_SIDE_PX, decode, encode
+from vision.errors import ParameterError
+from vision.jpeg_regions import (
+    JpegLayout,
+    blank_canvas,
+    decode_into,
+    decode_segments,
+    jpeg_layout,
+    paste,
+    splice,
+)
 
 
 def _layout_numpy(data: bytes) -> tuple[int, int, int, int, int, np.ndarray, np.ndarray] | None:
@@ -157,3 +167,100 @@ def test_layout_of_damaged_jpegs_is_the_numpy_forms() -> None:
     assert 0 < kept < 600  # both outcomes seen
     for short in (b"", b"\xff", b"\xff\xd8", b"\xff\xd8\xff", data[:2] + b"\xff\xda\x00\x02"):
         assert not _same_layout(short)
+
+
+def _splice_numpy(layout: JpegLayout, segments: np.ndarray, across: int = 1) -> bytes:
+    """_splice's numpy form (before the kernel)."""
+    seg_w, seg_h = layout.segment_px
+    seg = np.asarray(segments, dtype=np.intp)
+    n = len(seg)
+    head = bytearray(layout.header)
+    struct.pack_into(">HH", head, layout.sof_size_at, n // across * seg_h, across * seg_w)
+    brk = np.flatnonzero(seg[1:] != seg[:-1] + 1) + 1
+    lo = layout.starts[seg[np.concatenate(([0], brk))]] - 2
+    lo[0] += 2
+    hi = layout.ends[seg[np.concatenate((brk - 1, [n - 1]))]]
+    scan = memoryview(layout.data)
+    out = bytearray().join(
+        [head, *[scan[a:b] for a, b in zip(lo.tolist(), hi.tolist(), strict=True)], b"\xff\xd9"]
+    )
+    if n > 1:
+        lens = layout.ends[seg[:-1]] - layout.starts[seg[:-1]]
+        at = len(head) + np.cumsum(lens) + 2 * np.arange(1, n) - 1
+        np.frombuffer(out, dtype=np.uint8)[at] = 0xD0 + (np.arange(n - 1) & 7)
+    return bytes(out)
+
+
+def _paste_numpy(layout: JpegLayout, canvas: np.ndarray, segments: np.ndarray, strip) -> None:
+    """paste's numpy form (before the kernel)."""
+    seg_w, seg_h = layout.segment_px
+    grid = canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
+    grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
+        len(segments), seg_h, seg_w
+    )
+
+
+@pytest.mark.parametrize("interval", [1, 2, 4, 16])
+def test_splices_are_the_numpy_forms_bytes(interval: int) -> None:
+    """Single segments, runs, gaps, the first and the last, repeats (the padding of a
+    splice's last row), several to a row: the same bytes, which decode."""
+    h, w = 64, 8 * interval * 6
+    layout = jpeg_layout(encode(_scene(h, w, interval), "jpeg", 80, restart_interval_mcu=interval))
+    assert layout is not None
+    n_all = len(layout.starts)
+    rng = np.random.default_rng(interval)
+    cases = [np.array([0]), np.array([n_all - 1]), np.arange(n_all), np.array([0, 1, 2, 5, 6, 9])]
+    for n in (1, 2, 3, 7, 8, 9, 17, n_all // 2):
+        cases.append(np.sort(rng.choice(n_all, size=n, replace=False)))
+    for seg in cases:
+        assert splice(layout, seg) == _splice_numpy(layout, seg)
+        for across in (2, 3):
+            if seg[-1] == 0:
+                # segment 0 repeated: the numpy form copied the SOS header's last two
+                # bytes for its marker (no 0xFF); _decoded never pads a single segment
+                continue
+            part = np.concatenate((seg, np.full(-len(seg) % across, seg[-1])))
+            got = jr._splice(layout, part, across).tobytes()
+            assert got == _splice_numpy(layout, part, across)
+    assert decode(splice(layout, np.arange(n_all))).shape == (8 * n_all, 8 * interval)
+    for bad in (np.array([-1]), np.array([0, n_all])):
+        with pytest.raises(ParameterError, match="segments"):
+            splice(layout, bad)
+
+
+@pytest.mark.parametrize("interval", [1, 3, 16])
+def test_pasted_and_decoded_segments_are_the_numpy_forms(interval: int) -> None:
+    """paste and decode_into put every segment where the numpy form's fancy indexing put
+    it, nothing else changed (strips in any memory order)."""
+    h, w = 77, 8 * interval * 5 - 3
+    data = encode(_scene(h, w, 7 * interval), "jpeg", 90, restart_interval_mcu=interval)
+    layout = jpeg_layout(data)
+    assert layout is not None
+    full = decode(data)
+    n_all = len(layout.starts)
+    seg_w = 8 * interval
+    rng = np.random.default_rng(interval)
+    for n in (1, 2, 5, n_all):
+        seg = np.sort(rng.choice(n_all, size=n, replace=False))
+        strip = rng.integers(0, 256, (8 * n, seg_w), dtype=np.uint8)
+        for s in (strip, np.asfortranarray(strip)):
+            want = blank_canvas(layout, 17)
+            _paste_numpy(layout, want, seg, s)
+            got = blank_canvas(layout, 17)
+            paste(layout, got, seg, s)
+            np.testing.assert_array_equal(got, want)
+        want = blank_canvas(layout, 3)
+        _paste_numpy(layout, want, seg, decode_segments(layout, seg))
+        covered = np.zeros(want.shape, dtype=bool)
+        _paste_numpy(layout, covered, seg, np.ones((8 * n, seg_w), dtype=bool))
+        np.testing.assert_array_equal(want[:h, :w][covered[:h, :w]], full[covered[:h, :w]])
+        got = blank_canvas(layout, 3)
+        decode_into(layout, got, seg)
+        np.testing.assert_array_equal(got, want)
+    canvas = blank_canvas(layout, 0)
+    with pytest.raises(ParameterError, match="segments"):
+        paste(layout, canvas, np.array([n_all]), np.zeros((8, seg_w), np.uint8))
+    with pytest.raises(ParameterError, match="strip"):
+        paste(layout, canvas, np.array([0]), np.zeros((16, seg_w), np.uint8))
+    with pytest.raises(ParameterError, match="canvas"):
+        decode_into(layout, np.asfortranarray(canvas), np.array([0]))
