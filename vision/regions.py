@@ -49,7 +49,6 @@ from vision.jpeg_regions import (
     image_of,
     jpeg_layout,
     paste,
-    segment_hits,
     segments_of_blocks,
 )
 from vision.locate import (
@@ -149,7 +148,7 @@ class RegionReader:
             return None
         # The background's level: the circles' median sample (the beam covers a few % of
         # them); what is not decoded is that constant.
-        level = int(_median_u8(strip[::2, ::4]))
+        level = int(_median_sampled(strip, 2, 4))
         canvas = blank_canvas(layout, level)
         paste(layout, canvas, ring_segs, strip)
         image = image_of(layout, canvas)
@@ -164,7 +163,7 @@ class RegionReader:
         done[ring_segs] = True
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
-            new = np.flatnonzero(segment_hits(layout, want) & ~done)
+            new = _missing(want, done, layout.per_row, layout.interval)
             if new.size:
                 try:
                     decode_into(layout, canvas, new)
@@ -177,7 +176,7 @@ class RegionReader:
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, w0, shape)
-            if not np.any(segment_hits(layout, read) & ~done):
+            if _missing(read, done, layout.per_row, layout.interval).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
@@ -526,15 +525,47 @@ def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return v / n if n > 0 else np.array([1.0, 0.0])
 
 
-def _median_u8(values: NDArray[np.uint8]) -> float:
-    """``np.median`` of 8-bit values, from their histogram (a partition of tens of
-    thousands of values costs several times more; OpenCV's histogram a third of
-    numpy's, its float32 counts exact below 2**24 values)."""
-    if values.size < 1 << 24:
-        hist = cv2.calcHist([values], [0], None, [256], [0, 256]).ravel().astype(np.int64)
-    else:
-        hist = np.bincount(values.ravel(), minlength=256)
-    cum = np.cumsum(hist)
-    n = int(cum[-1])
-    lo, hi = np.searchsorted(cum, [(n - 1) // 2, n // 2], side="right")
+@kernel
+def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -> float:
+    """``np.median(values[::step_rows, ::step_cols])`` of a 2-D uint8 array, from the
+    samples' histogram (a partition of tens of thousands of values costs several times
+    more)."""
+    hist = np.zeros(256, dtype=np.int64)
+    for r in range(0, values.shape[0], step_rows):
+        for c in range(0, values.shape[1], step_cols):
+            hist[values[r, c]] += 1
+    n = 0
+    for v in range(256):
+        n += hist[v]
+    # the values of rank (n - 1) // 2 and n // 2: the first whose count reaches past it
+    lo = hi = 256
+    cum = 0
+    for v in range(256):
+        cum += hist[v]
+        if lo == 256 and cum > (n - 1) // 2:
+            lo = v
+        if cum > n // 2:
+            hi = v
+            break
     return 0.5 * (float(lo) + float(hi))
+
+
+@kernel
+def _missing(
+    blocks: NDArray[np.bool_], done: NDArray[np.bool_], per_row: int, interval: int
+) -> NDArray[np.intp]:
+    """The segments (raster indices; ``per_row`` of ``interval`` blocks to a block row)
+    holding a True block of ``blocks`` and not ``done``."""
+    out = np.empty(done.size, dtype=np.intp)
+    n = 0
+    for r in range(blocks.shape[0]):
+        for q in range(per_row):
+            seg = r * per_row + q
+            if done[seg]:
+                continue
+            for c in range(q * interval, (q + 1) * interval):
+                if blocks[r, c]:
+                    out[n] = seg
+                    n += 1
+                    break
+    return out[:n].copy()

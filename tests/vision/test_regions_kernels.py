@@ -12,7 +12,7 @@ import pytest
 
 from vision.config import CameraConfig, CameraPoseConfig
 from vision.measure import Measurer
-from vision.regions import RegionReader, _tube_pixels, _tube_points
+from vision.regions import RegionReader, _median_sampled, _missing, _tube_pixels, _tube_points
 from vision.sampling import unit_step_gradient
 from vision.synthetic.render import render_frame
 
@@ -196,3 +196,34 @@ def test_unbounded_tubes_cover_everything(reader) -> None:
     np.testing.assert_array_equal(got, reader._tubes(shape, [(with_inf[[0, 2]], 0.01)]))
     assert 0 < got.sum() < got.size
     assert not reader._tubes(shape, [(np.array([[0.0, 0.1]]), 0.01)]).any()
+
+
+def test_median_of_samples_is_numpys() -> None:
+    """Every 2nd row and 4th column, as np.median of the slice: odd and even counts
+    (the mean of the two middle values), ties, one value, the extremes, none."""
+    rng = np.random.default_rng(10)
+    for shape in ((8, 64), (16, 128), (24, 8), (1, 1), (3, 5), (800, 128)):
+        for kind in ("uniform", "narrow", "two"):
+            if kind == "uniform":
+                v = rng.integers(0, 256, shape, dtype=np.uint8)
+            elif kind == "narrow":
+                v = rng.integers(100, 104, shape, dtype=np.uint8)
+            else:
+                v = np.where(rng.random(shape) < 0.5, 0, 255).astype(np.uint8)
+            assert _median_sampled(v, 2, 4) == np.median(v[::2, ::4])
+            assert _median_sampled(v, 1, 1) == np.median(v)
+    assert _median_sampled(np.zeros((0, 4), np.uint8), 2, 4) == 128.0  # the numpy form's
+
+
+def test_missing_segments_are_the_numpy_forms() -> None:
+    """Segments hit by a block and not done: segment_hits(...) & ~done, its indices."""
+    rng = np.random.default_rng(11)
+    for interval, per_row, rows in ((1, 7, 5), (3, 4, 6), (16, 16, 3), (5, 1, 9)):
+        for density in (0.0, 0.01, 0.2, 1.0):
+            blocks = rng.random((rows, per_row * interval)) < density
+            done = rng.random(rows * per_row) < 0.3
+            hits = blocks.reshape(rows * per_row, interval).any(axis=1)
+            want = np.flatnonzero(hits & ~done)
+            got = _missing(blocks, done, per_row, interval)
+            np.testing.assert_array_equal(got, want)
+            assert got.dtype == np.intp
