@@ -292,7 +292,8 @@ def _spliced(
             return np.zeros(0, dtype=np.uint8)
         total += ends[seg[j]] - starts[seg[j]]
     out = np.empty(total, dtype=np.uint8)
-    out[:head] = data[:head]
+    for i in range(np.uint64(head)):  # unsigned offsets: see _put_segments
+        out[i] = data[i]
     out[sof_at] = (height_px >> 8) & 0xFF
     out[sof_at + 1] = height_px & 0xFF
     out[sof_at + 2] = (width_px >> 8) & 0xFF
@@ -303,10 +304,12 @@ def _spliced(
             out[o] = 0xFF
             out[o + 1] = 0xD0 + ((j - 1) & 7)
             o += 2
-        a = starts[seg[j]]
-        m = ends[seg[j]] - a
-        out[o : o + m] = data[a : a + m]
-        o += m
+        a = np.uint64(starts[seg[j]])
+        m = np.uint64(ends[seg[j]] - starts[seg[j]])
+        at = np.uint64(o)
+        for i in range(m):
+            out[at + i] = data[a + i]
+        o += ends[seg[j]] - starts[seg[j]]
     out[o] = 0xFF
     out[o + 1] = 0xD9
     return out
@@ -374,13 +377,23 @@ def _put_segments(
 ) -> None:
     """Copy the segments of ``pixels`` (``across`` to a row, in raster order) to their
     places ``at`` in ``canvas`` (``per_row`` to a row), as many as ``at`` holds."""
+    # Row by row over the flat arrays with unsigned offsets: no negative-index check per
+    # byte, so the copy is vectorised (a slice assignment checks for overlap, slower).
+    dst = canvas.ravel()
+    src = pixels.ravel()
+    dst_w = np.uint64(canvas.shape[1])
+    src_w = np.uint64(pixels.shape[1])
+    width = np.uint64(seg_w)
     for j in range(at.size):
         r0 = at[j] // per_row * seg_h
         c0 = at[j] % per_row * seg_w
         pr = j // across * seg_h
         pc = j % across * seg_w
         for y in range(seg_h):
-            canvas[r0 + y, c0 : c0 + seg_w] = pixels[pr + y, pc : pc + seg_w]
+            a = np.uint64(r0 + y) * dst_w + np.uint64(c0)
+            b = np.uint64(pr + y) * src_w + np.uint64(pc)
+            for x in range(width):
+                dst[a + x] = src[b + x]
 
 
 def _check_canvas(layout: JpegLayout, canvas: NDArray[np.uint8]) -> None:

@@ -163,7 +163,7 @@ class RegionReader:
         done[ring_segs] = True
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
-            new = _missing(want, done, layout.per_row, layout.interval)
+            new = _missing(want, done, layout.interval)
             if new.size:
                 try:
                     decode_into(layout, canvas, new)
@@ -176,7 +176,7 @@ class RegionReader:
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, w0, shape)
-            if _missing(read, done, layout.per_row, layout.interval).size == 0:
+            if _missing(read, done, layout.interval).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
@@ -531,9 +531,13 @@ def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -
     samples' histogram (a partition of tens of thousands of values costs several times
     more)."""
     hist = np.zeros(256, dtype=np.int64)
-    for r in range(0, values.shape[0], step_rows):
-        for c in range(0, values.shape[1], step_cols):
-            hist[values[r, c]] += 1
+    flat = values.ravel()
+    width = np.uint64(values.shape[1])
+    step = np.uint64(step_cols)
+    for r in range(0, values.shape[0], step_rows):  # unsigned offsets: no wraparound checks
+        row = np.uint64(r) * width
+        for c in range(np.uint64(0), width, step):
+            hist[flat[row + c]] += 1
     n = 0
     for v in range(256):
         n += hist[v]
@@ -551,21 +555,19 @@ def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -
 
 
 @kernel
-def _missing(
-    blocks: NDArray[np.bool_], done: NDArray[np.bool_], per_row: int, interval: int
-) -> NDArray[np.intp]:
-    """The segments (raster indices; ``per_row`` of ``interval`` blocks to a block row)
-    holding a True block of ``blocks`` and not ``done``."""
+def _missing(blocks: NDArray[np.bool_], done: NDArray[np.bool_], interval: int) -> NDArray[np.intp]:
+    """The segments holding a True block of ``blocks`` (C order: segment ``s`` is blocks
+    ``s * interval`` to ``(s + 1) * interval`` in raster order) and not ``done``."""
     out = np.empty(done.size, dtype=np.intp)
     n = 0
-    for r in range(blocks.shape[0]):
-        for q in range(per_row):
-            seg = r * per_row + q
-            if done[seg]:
-                continue
-            for c in range(q * interval, (q + 1) * interval):
-                if blocks[r, c]:
-                    out[n] = seg
-                    n += 1
-                    break
+    flat = blocks.ravel()
+    k = np.uint64(interval)
+    for seg in range(done.size):  # a segment's blocks are interval in a row of the mask
+        at = np.uint64(seg) * k  # unsigned offsets: no wraparound checks
+        hit = False
+        for c in range(k):
+            hit |= flat[at + c]  # no branch per block: an OR the compiler vectorises
+        if hit and not done[seg]:
+            out[n] = seg
+            n += 1
     return out[:n].copy()

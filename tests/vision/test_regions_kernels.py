@@ -224,6 +224,6 @@ def test_missing_segments_are_the_numpy_forms() -> None:
             done = rng.random(rows * per_row) < 0.3
             hits = blocks.reshape(rows * per_row, interval).any(axis=1)
             want = np.flatnonzero(hits & ~done)
-            got = _missing(blocks, done, per_row, interval)
+            got = _missing(blocks, done, interval)
             np.testing.assert_array_equal(got, want)
             assert got.dtype == np.intp
