@@ -75,7 +75,7 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     JPEG, not baseline, not one component, no restart interval, an interval that does
     not divide the MCU row, restart markers missing, out of order or damaged)."""
     buf = np.frombuffer(data, dtype=np.uint8)
-    got = _parse_layout(buf, MAX_SIDE_PX)
+    got = _parse_layout(buf, (buf == 0xFF).view(np.uint8), MAX_SIDE_PX)
     if got[0] == 0:
         return None
     width, height, interval, sof_at, scan_at, starts, ends = got
@@ -96,7 +96,7 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
 
 @kernel
 def _parse_layout(
-    buf: NDArray[np.uint8], max_side: int
+    buf: NDArray[np.uint8], is_ff: NDArray[np.uint8], max_side: int
 ) -> tuple[int, int, int, int, int, NDArray[np.intp], NDArray[np.intp]]:
     """:func:`jpeg_layout`'s parse: ``(width, height, interval, offset of the frame
     header's size, offset of the scan, starts, ends)``, width 0 when there is none.
@@ -152,14 +152,14 @@ def _parse_layout(
         return nothing
     n_seg = mcu_cols // interval * mcu_rows
     # Every 0xFF after the scan's header is followed by 0x00 (stuffing), RSTn (0xD0..0xD7
-    # in turn from RST0) or the scan's end, which must be EOI. The data eight bytes at a
-    # time (little-endian words), the 0xFF bytes of a word as its complement's zero
-    # bytes, in order (the lowest bit of the mask): the markers come at random, so
-    # branching byte by byte would cost more in mispredicted branches than the work.
+    # in turn from RST0) or the scan's end, which must be EOI. Where the 0xFF bytes are
+    # (``is_ff``, 1 or 0 a byte, numpy's vectorised comparison) is read eight bytes at a
+    # time (little-endian words), a word's in order (its lowest bit first): the markers
+    # come at random, so branching byte by byte would cost more in mispredicted
+    # branches than the work.
     nw = n // 8
-    words = buf[: 8 * nw].view(np.uint64)
-    low7, high = np.uint64(0x7F7F7F7F7F7F7F7F), np.uint64(0x8080808080808080)
-    byte_of = np.uint64(0x0001020304050607)  # (bit 8j of a power of two) * this >> 56: j
+    words = is_ff[: 8 * nw].view(np.uint64)
+    byte_of = np.uint64(0x0001020304050607)  # (bit 8j) * this >> 56: j
     starts = np.empty(n_seg, dtype=np.intp)
     ends = np.empty(n_seg, dtype=np.intp)
     starts[0] = scan_at
@@ -167,14 +167,15 @@ def _parse_layout(
     stop = -1
     for k in range(scan_at // 8, (n - 2) // 8 + 1):
         if k < nw:
-            x = ~words[k]
+            ff = words[k]
         else:  # the last bytes, short of a word
-            x = ~np.uint64(0)
+            ff = np.uint64(0)
             for j in range(n - 8 * k):
-                x ^= np.uint64(buf[8 * k + j]) << np.uint64(8 * j)
-        ff = ~(((x & low7) + low7) | x) & high  # the high bit of each zero byte of x
+                ff |= np.uint64(is_ff[8 * k + j]) << np.uint64(8 * j)
+        if ff == 0:
+            continue
         while ff:
-            j = int(((ff & (~ff + np.uint64(1))) >> np.uint64(7)) * byte_of >> np.uint64(56))
+            j = int((ff & (~ff + np.uint64(1))) * byte_of >> np.uint64(56))
             ff &= ff - np.uint64(1)
             p = 8 * k + j
             if p < scan_at or p >= n - 1:
