@@ -103,7 +103,8 @@ def _parse_layout(
     The markers before the scan one by one; then, in the entropy-coded data, every
     0xFF is followed by 0x00 (stuffing), a restart marker or the marker that ends the
     scan, which must be EOI (one scan: baseline gray)."""
-    nothing = (0, 0, 0, 0, 0, np.zeros(0, np.intp), np.zeros(0, np.intp))
+    none = np.zeros(0, np.intp)
+    nothing = (0, 0, 0, 0, 0, none, none)
     n = buf.size
     if n < 2 or buf[0] != 0xFF or buf[1] != 0xD8:
         return nothing
@@ -422,7 +423,7 @@ def paste(
     :func:`blank_canvas` (in place)."""
     seg_w, seg_h = layout.segment_px
     _check_canvas(layout, canvas)
-    seg = np.asarray(segments, dtype=np.intp)
+    seg = np.array(segments, dtype=np.intp)  # writable: one compiled form of the kernel
     if seg.size and not (0 <= seg.min() and seg.max() < len(layout.starts)):
         raise ParameterError("segments", f"must be 0..{len(layout.starts) - 1}")
     if strip.size != seg.size * seg_h * seg_w:

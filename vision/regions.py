@@ -405,7 +405,7 @@ def _tube_points(
     :data:`_MAX_LINE_POINTS` points (not finite, or no width)."""
     n_tubes = counts.size
     # the finite points of each line, in order, and the number of points along it
-    clean = np.empty_like(lines)
+    clean = np.empty((lines.shape[0], 2))
     kept = np.zeros(n_tubes, dtype=np.intp)
     dense = np.zeros(n_tubes, dtype=np.intp)
     length = np.zeros(n_tubes)
@@ -413,8 +413,9 @@ def _tube_points(
     for i in range(n_tubes):
         m = 0
         for j in range(at, at + counts[i]):
-            if np.isfinite(lines[j, 0]) and np.isfinite(lines[j, 1]):
-                clean[at + m] = lines[j]
+            if math.isfinite(lines[j, 0]) and math.isfinite(lines[j, 1]):
+                clean[at + m, 0] = lines[j, 0]  # element-wise: a row assignment
+                clean[at + m, 1] = lines[j, 1]  # costs seconds of compile time
                 m += 1
         kept[i] = m
         if m >= 2:
@@ -423,7 +424,9 @@ def _tube_points(
             else:
                 total = 0.0
                 for j in range(at + 1, at + m):
-                    total += np.hypot(clean[j, 0] - clean[j - 1, 0], clean[j, 1] - clean[j - 1, 1])
+                    total += math.hypot(
+                        clean[j, 0] - clean[j - 1, 0], clean[j, 1] - clean[j - 1, 1]
+                    )
             if total > 0:
                 steps = total / (0.5 * halves[i])
                 if not steps < _MAX_LINE_POINTS:
@@ -465,7 +468,7 @@ def _tube_points(
             s = np.empty(m)
             s[0] = 0.0
             for j in range(1, m):
-                d = np.hypot(
+                d = math.hypot(
                     clean[at + j, 0] - clean[at + j - 1, 0], clean[at + j, 1] - clean[at + j - 1, 1]
                 )
                 s[j] = s[j - 1] + d
@@ -483,9 +486,9 @@ def _tube_points(
                         y1 = clean[at + seg + 1, c]
                         slope = (y1 - y0) / (s[seg + 1] - s[seg])
                         v = slope * (x - s[seg]) + y0
-                        if np.isnan(v):
+                        if math.isnan(v):
                             v = slope * (x - s[seg + 1]) + y1
-                            if np.isnan(v) and y0 == y1:
+                            if math.isnan(v) and y0 == y1:
                                 v = y0
                     out[o + j, c] = v
             # unit tangents: central differences, one-sided at the ends
@@ -496,7 +499,7 @@ def _tube_points(
                     d = out[o + hi, c] - out[o + lo, c]
                     t[o + j, c] = d / 2.0 if 0 < j < n - 1 else d
             for j in range(n):
-                norm = max(np.hypot(t[o + j, 0], t[o + j, 1]), 1e-12)
+                norm = max(math.hypot(t[o + j, 0], t[o + j, 1]), 1e-12)
                 t[o + j, 0] /= norm
                 t[o + j, 1] /= norm
         # the ends extended by the half width, then the sides
@@ -527,7 +530,7 @@ def _tube_pixels(
     blk = np.empty((k, 2), dtype=np.int32)
     thick = np.empty(first.size, dtype=np.intp)
     for j in range(3 * k):
-        if not (np.isfinite(px[j, 0]) and np.isfinite(px[j, 1])):
+        if not (math.isfinite(px[j, 0]) and math.isfinite(px[j, 1])):
             return np.zeros((0, 2), dtype=np.int32), np.zeros(0, dtype=np.intp)
     lim = float(2**27)
     for j in range(k):
@@ -538,8 +541,8 @@ def _tube_pixels(
         end = first[i + 1] if i + 1 < first.size else k
         widest = 0.0
         for j in range(first[i], end):
-            a = np.hypot(px[k + j, 0] - px[j, 0], px[k + j, 1] - px[j, 1])
-            b = np.hypot(px[2 * k + j, 0] - px[j, 0], px[2 * k + j, 1] - px[j, 1])
+            a = math.hypot(px[k + j, 0] - px[j, 0], px[k + j, 1] - px[j, 1])
+            b = math.hypot(px[2 * k + j, 0] - px[j, 0], px[2 * k + j, 1] - px[j, 1])
             side = max(a, b)
             widest = side if j == first[i] else max(widest, side)
         thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
@@ -547,7 +550,7 @@ def _tube_pixels(
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    n = float(np.hypot(v[0], v[1]))
+    n = float(math.hypot(v[0], v[1]))
     return v / n if n > 0 else np.array([1.0, 0.0])
 
 
@@ -621,4 +624,4 @@ def _missing(blocks: NDArray[np.bool_], done: NDArray[np.bool_], interval: int) 
         if hit and not done[seg]:
             out[n] = seg
             n += 1
-    return out[:n].copy()
+    return out[:n]
