@@ -93,8 +93,7 @@ class RegionStats:
 
 class RegionReader:
     """Decode-and-measure of a run's frames in order, decoding JPEGs in parts where it
-    can (see the module's notes); the results are the measurer's on the full frames.
-    A reader keeps the previous frame (its track, its canvas): one reader per thread."""
+    can (see the module's notes); the results are the measurer's on the full frames."""
 
     def __init__(self, measurer: Measurer, *, parts: bool = True) -> None:
         if not isinstance(measurer, Measurer):
@@ -115,12 +114,6 @@ class RegionReader:
         #: edges were read (m; 0 when it was not smeared).
         self.smear_m = 0.0
         self.stats = RegionStats()
-        # The canvas of the previous frame measured in parts (its layout's segment rows,
-        # segments to a row and interval; its level; the segments decoded into it).
-        self._canvas: NDArray[np.uint8] | None = None
-        self._canvas_key = (0, 0, 0)
-        self._canvas_level = -1
-        self._written = np.zeros(0, dtype=bool)
 
     # -- entry point ------------------------------------------------------------------
     def measure(self, data: bytes) -> FrameMeasurement:
@@ -156,13 +149,7 @@ class RegionReader:
         # The background's level: the circles' median sample (the beam covers a few % of
         # them); what is not decoded is that constant.
         level = int(_median_sampled(strip, 2, 4))
-        canvas = self._blank(layout, level)
-        # What was decoded, by segment (whole segments are decoded, the circles' first:
-        # none of them again where the band overlaps them); the canvas's next frame
-        # fills these back.
-        done = np.zeros(layout.per_row * layout.mcu_rows, dtype=bool)
-        done[ring_segs] = True
-        self._written = done
+        canvas = blank_canvas(layout, level)
         paste(layout, canvas, ring_segs, strip)
         image = image_of(layout, canvas)
         found = crossings(image, self._circles)
@@ -170,6 +157,10 @@ class RegionReader:
             return None
         p1, p2, shown = found
         w0 = outward_width(shown, self.measurer.calibration.beam_width_m)
+        # What was decoded, by segment (whole segments are decoded, the circles' first:
+        # none of them again where the band overlaps them).
+        done = np.zeros(layout.per_row * layout.mcu_rows, dtype=bool)
+        done[ring_segs] = True
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
             new = _missing(want, done, layout.interval)
@@ -177,7 +168,6 @@ class RegionReader:
                 try:
                     decode_into(layout, canvas, new)
                 except ValueError:
-                    self._canvas = None  # part of a splice may be in it
                     return None
                 done[new] = True
                 self.stats.regrown += attempt
@@ -194,22 +184,6 @@ class RegionReader:
             # once it is decoded), and measure again.
             want = read | self._predicted(p1, p2, w0, shape, behind_m=self._length)
         return None
-
-    def _blank(self, layout: JpegLayout, level: int) -> NDArray[np.uint8]:
-        """A :func:`blank_canvas` of ``level``: the previous frame's again when it has
-        the same layout, its decoded segments filled back (a run's frames mostly show
-        the same level: a third of the memory written), or filled whole."""
-        key = (layout.mcu_rows, layout.per_row, layout.interval)
-        canvas = self._canvas
-        if canvas is None or key != self._canvas_key:
-            canvas = blank_canvas(layout, level)
-        elif level == self._canvas_level:
-            seg_w, seg_h = layout.segment_px
-            _fill_segments(canvas, self._written, layout.per_row, seg_h, seg_w, level)
-        else:
-            canvas.fill(level)
-        self._canvas, self._canvas_key, self._canvas_level = canvas, key, level
-        return canvas
 
     def lose_track(self) -> None:
         """Forget the previous frame: the next is searched as the first of a run (a frame
@@ -581,31 +555,6 @@ def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -
             hi = v
             break
     return 0.5 * (float(lo) + float(hi))
-
-
-@kernel
-def _fill_segments(
-    canvas: NDArray[np.uint8],
-    which: NDArray[np.bool_],
-    per_row: int,
-    seg_h: int,
-    seg_w: int,
-    level: int,
-) -> None:
-    """Set every pixel of the segments ``which`` (by raster index; ``per_row`` to a
-    row of ``canvas``) to ``level``."""
-    flat = canvas.ravel()
-    width = np.uint64(canvas.shape[1])
-    value = np.uint8(level)
-    for seg in range(which.size):
-        if not which[seg]:
-            continue
-        r0 = seg // per_row * seg_h
-        c0 = seg % per_row * seg_w
-        for y in range(seg_h):
-            a = np.uint64(r0 + y) * width + np.uint64(c0)
-            for x in range(np.uint64(seg_w)):  # unsigned offsets: see _missing
-                flat[a + x] = value
 
 
 @kernel

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from unittest import mock
 
@@ -12,11 +11,9 @@ import numpy as np
 import pytest
 
 from vision.config import CameraConfig, CameraPoseConfig
-from vision.frame_measurement import FrameMeasurement
 from vision.measure import Measurer
 from vision.regions import (
     RegionReader,
-    _fill_segments,
     _median_sampled,
     _missing,
     _tube_pixels,
@@ -236,56 +233,3 @@ def test_missing_segments_are_the_numpy_forms() -> None:
             got = _missing(blocks, done, interval)
             np.testing.assert_array_equal(got, want)
             assert got.dtype == np.intp
-
-
-def test_fill_segments_sets_those_segments_only() -> None:
-    rng = np.random.default_rng(12)
-    canvas = rng.integers(0, 256, (24, 5 * 16), dtype=np.uint8)
-    which = rng.random(15) < 0.4
-    want = canvas.copy()
-    grid = want.reshape(3, 8, 5, 16).transpose(0, 2, 1, 3)
-    grid[np.flatnonzero(which) // 5, np.flatnonzero(which) % 5] = 201
-    _fill_segments(canvas, which, 5, 8, 16, 201)
-    np.testing.assert_array_equal(canvas, want)
-
-
-def test_a_canvas_used_again_measures_as_a_new_one(vt) -> None:
-    """A run's frames through one reader, its canvas filled back between frames (the
-    same level, another level, a frame that does not decode in between): the same
-    canvas, every field as with a new canvas each frame."""
-    from vision.codec import encode
-
-    spec = vt.make_spec(
-        camera=CameraConfig(width_px=1024, height_px=768, focal_length_px=820.0),
-        pose=CameraPoseConfig(
-            tilt_rad=math.radians(7.0),
-            tilt_azimuth_rad=math.radians(120.0),
-            roll_rad=math.radians(2.0),
-        ),
-        seed=6,
-        noise_dn=2.0,
-    )
-    rng = np.random.default_rng(13)
-    frames = []
-    for deg, slope, gain in ((250.0, 0.02, 1.0), (262.0, -0.03, 1.0), (275.0, 0.05, 1.6)):
-        img = render_frame(spec, [vt.bent(math.radians(deg), slope)], rng=rng).image
-        frames.append(encode(np.clip(img * gain, 0, 255).astype(np.uint8), "jpeg", 90))
-    cal = vt.truth_calibration(render_frame(spec, [vt.bent(math.radians(250.0), 0.0)]).truth)
-    run = [frames[0], frames[1], frames[1], b"\xff\xd8 damaged", frames[2], frames[0]]
-    again, fresh = RegionReader(Measurer(cal)), RegionReader(Measurer(cal))
-    levels = []
-    for data in run:
-        a = again.measure(data)
-        fresh._canvas = None
-        b = fresh.measure(data)
-        levels.append(again._canvas_level)
-        if fresh._canvas is not None:  # the same pixels: the level wherever not decoded
-            np.testing.assert_array_equal(again._canvas, fresh._canvas)
-        assert a.ok == b.ok and a.reason == b.reason
-        for f in dataclasses.fields(FrameMeasurement):
-            x, y = getattr(a, f.name), getattr(b, f.name)
-            if isinstance(x, np.ndarray):
-                np.testing.assert_array_equal(x, y, err_msg=f.name)
-            else:
-                assert x == y or (x != x and y != y), f.name  # NaN: unequal to itself
-    assert again.stats.parts == 5 and len(set(levels)) > 1  # a level changed in the run
