@@ -18,8 +18,6 @@ damaged bytes as its errors do.
 
 from __future__ import annotations
 
-import math
-import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
@@ -30,11 +28,11 @@ from numpy.typing import NDArray
 
 from vision.codec import MAX_SIDE_PX, RST_INTERVAL_MCU
 from vision.errors import DecodeError, ParameterError
+from vision.jit import kernel
 
 _MCU_PX = 8  # a single-component scan's MCU is one 8 x 8 block
 # the spliced JPEG's height is a 16-bit field: at most this many segments in one splice
 _MAX_SEGMENTS = 65535 // _MCU_PX
-_EOI = b"\xff\xd9"
 #: A splice's rows are about this wide (px): several narrow segments side by side.
 _ROW_PX = 1024
 
@@ -76,87 +74,132 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     """The segment layout of ``data``, or None when it cannot be decoded in parts (not a
     JPEG, not baseline, not one component, no restart interval, an interval that does
     not divide the MCU row, restart markers missing, out of order or damaged)."""
-    if data[:2] != b"\xff\xd8":
-        return None
-    i = 2
-    interval = 0
-    size: tuple[int, int] | None = None
-    sof_at = -1
-    n = len(data)
-    while True:
-        while i < n and data[i] == 0xFF and i + 1 < n and data[i + 1] == 0xFF:
-            i += 1  # fill bytes
-        if i + 4 > n or data[i] != 0xFF:
-            return None
-        marker = data[i + 1]
-        (length,) = struct.unpack(">H", data[i + 2 : i + 4])
-        if length < 2 or i + 2 + length > n:
-            return None
-        body = data[i + 4 : i + 2 + length]
-        if marker in (0xC0, 0xC1):  # baseline / extended sequential, Huffman
-            if len(body) < 6 or body[5] != 1:
-                return None  # not a single component
-            height, width = struct.unpack(">HH", body[1:5])
-            size = (width, height)
-            sof_at = i + 5
-        elif marker in (0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF):
-            return None  # progressive, lossless, hierarchical or arithmetic coded
-        elif marker == 0xDD:
-            if len(body) != 2:
-                return None
-            (interval,) = struct.unpack(">H", body)
-        elif marker == 0xDA:
-            scan_at = i + 2 + length
-            break
-        elif marker in (0xD8, 0xD9, *range(0xD0, 0xD8)):
-            return None
-        i += 2 + length
-    if size is None or interval == 0:
-        return None
-    width, height = size
-    if not 0 < width <= MAX_SIDE_PX or not 0 < height <= MAX_SIDE_PX:
-        return None
-    mcu_cols = math.ceil(width / _MCU_PX)
-    mcu_rows = math.ceil(height / _MCU_PX)
-    if mcu_cols % interval:
-        return None
-    per_row = mcu_cols // interval
-    n_seg = per_row * mcu_rows
-    # Every 0xFF in entropy-coded data is followed by 0x00 (stuffing), a restart marker
-    # or the marker that ends the scan.
     buf = np.frombuffer(data, dtype=np.uint8)
-    ff = np.flatnonzero(buf[scan_at:-1] == 0xFF) + scan_at
-    marks = ff[buf[ff + 1] != 0]
-    kinds = buf[marks + 1]
-    is_rst = (kinds & 0xF8) == 0xD0
-    end_of_scan = np.flatnonzero(~is_rst)
-    if end_of_scan.size == 0 or kinds[end_of_scan[0]] != 0xD9:
-        return None  # the scan must end at EOI (one scan: baseline gray)
-    rst = marks[: end_of_scan[0]]
-    if rst.size != n_seg - 1:
+    got = _parse_layout(buf, (buf == 0xFF).view(np.uint8), MAX_SIDE_PX)
+    if got[0] == 0:
         return None
-    numbers = kinds[: rst.size]  # each RSTn: 0xD0..0xD7 in turn from RST0
-    if rst.size and (numbers[0] != 0xD0 or np.any(((numbers[1:] - numbers[:-1]) & 7) != 1)):
-        return None
-    stop = int(marks[end_of_scan[0]])
-    starts = np.empty(n_seg, dtype=np.intp)
-    starts[0] = scan_at
-    starts[1:] = rst + 2
-    ends = np.empty(n_seg, dtype=np.intp)
-    ends[:-1] = rst
-    ends[-1] = stop
+    width, height, interval, sof_at, scan_at, starts, ends = got
+    mcu_cols = (width + _MCU_PX - 1) // _MCU_PX
     return JpegLayout(
         data=data,
         width_px=width,
         height_px=height,
         interval=interval,
-        per_row=per_row,
-        mcu_rows=mcu_rows,
+        per_row=mcu_cols // interval,
+        mcu_rows=(height + _MCU_PX - 1) // _MCU_PX,
         header=data[:scan_at],
         sof_size_at=sof_at,
         starts=starts,
         ends=ends,
     )
+
+
+@kernel
+def _parse_layout(
+    buf: NDArray[np.uint8], is_ff: NDArray[np.uint8], max_side: int
+) -> tuple[int, int, int, int, int, NDArray[np.intp], NDArray[np.intp]]:
+    """:func:`jpeg_layout`'s parse: ``(width, height, interval, offset of the frame
+    header's size, offset of the scan, starts, ends)``, width 0 when there is none.
+    The markers before the scan one by one; then, in the entropy-coded data, every
+    0xFF is followed by 0x00 (stuffing), a restart marker or the marker that ends the
+    scan, which must be EOI (one scan: baseline gray)."""
+    none = np.zeros(0, np.intp)
+    nothing = (0, 0, 0, 0, 0, none, none)
+    n = buf.size
+    if n < 2 or buf[0] != 0xFF or buf[1] != 0xD8:
+        return nothing
+    i = 2
+    interval = 0
+    width = height = 0
+    have_size = False
+    sof_at = -1
+    scan_at = 0
+    while True:
+        while i < n and buf[i] == 0xFF and i + 1 < n and buf[i + 1] == 0xFF:
+            i += 1  # fill bytes
+        if i + 4 > n or buf[i] != 0xFF:
+            return nothing
+        marker = int(buf[i + 1])
+        length = int(buf[i + 2]) * 256 + int(buf[i + 3])
+        if length < 2 or i + 2 + length > n:
+            return nothing
+        body = i + 4
+        if marker == 0xC0 or marker == 0xC1:  # baseline / extended sequential, Huffman
+            if length - 2 < 6 or buf[body + 5] != 1:
+                return nothing  # not a single component
+            height = int(buf[body + 1]) * 256 + int(buf[body + 2])
+            width = int(buf[body + 3]) * 256 + int(buf[body + 4])
+            have_size = True
+            sof_at = i + 5
+        elif 0xC2 <= marker <= 0xCF and marker != 0xC4 and marker != 0xC8 and marker != 0xCC:
+            return nothing  # progressive, lossless, hierarchical or arithmetic coded
+        elif marker == 0xDD:
+            if length - 2 != 2:
+                return nothing
+            interval = int(buf[body]) * 256 + int(buf[body + 1])
+        elif marker == 0xDA:
+            scan_at = i + 2 + length
+            break
+        elif 0xD0 <= marker <= 0xD9:  # RSTn, SOI, EOI
+            return nothing
+        i += 2 + length
+    if not have_size or interval == 0:
+        return nothing
+    if not 0 < width <= max_side or not 0 < height <= max_side:
+        return nothing
+    mcu_cols = (width + 7) // 8
+    mcu_rows = (height + 7) // 8
+    if mcu_cols % interval:
+        return nothing
+    n_seg = mcu_cols // interval * mcu_rows
+    # Every 0xFF after the scan's header is followed by 0x00 (stuffing), RSTn (0xD0..0xD7
+    # in turn from RST0) or the scan's end, which must be EOI. Where the 0xFF bytes are
+    # (``is_ff``, 1 or 0 a byte, numpy's vectorised comparison) is read eight bytes at a
+    # time (little-endian words), a word's in order (its lowest bit first): the markers
+    # come at random, so branching byte by byte would cost more in mispredicted
+    # branches than the work.
+    nw = n // 8
+    words = is_ff[: 8 * nw].view(np.uint64)
+    byte_of = np.uint64(0x0001020304050607)  # (bit 8j) * this >> 56: j
+    starts = np.empty(n_seg, dtype=np.intp)
+    ends = np.empty(n_seg, dtype=np.intp)
+    starts[0] = scan_at
+    n_rst = 0
+    stop = -1
+    for k in range(scan_at // 8, (n - 2) // 8 + 1):
+        if k < nw:
+            ff = words[k]
+        else:  # the last bytes, short of a word
+            ff = np.uint64(0)
+            for j in range(n - 8 * k):
+                ff |= np.uint64(is_ff[8 * k + j]) << np.uint64(8 * j)
+        if ff == 0:
+            continue
+        while ff:
+            j = int((ff & (~ff + np.uint64(1))) * byte_of >> np.uint64(56))
+            ff &= ff - np.uint64(1)
+            p = 8 * k + j
+            if p < scan_at or p >= n - 1:
+                continue
+            kind = int(buf[p + 1])
+            if kind == 0:
+                continue
+            if kind != 0xD0 + (n_rst & 7):  # not the next RSTn
+                if kind & 0xF8 == 0xD0 or kind != 0xD9:
+                    return nothing
+                stop = p
+                break
+            if n_rst == n_seg - 1:
+                return nothing
+            ends[n_rst] = p
+            n_rst += 1
+            starts[n_rst] = p + 2
+        if stop >= 0:
+            break
+    if stop < 0 or n_rst != n_seg - 1:
+        return nothing
+    ends[n_seg - 1] = stop
+    return width, height, interval, sof_at, scan_at, starts, ends
 
 
 def segments_covering(layout: JpegLayout, mask_px: NDArray[np.bool_]) -> NDArray[np.intp]:
@@ -204,10 +247,10 @@ _UINT_OF_BYTES = {1: np.uint8, 2: np.uint16, 4: np.uint32}
 def splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytes:
     """A baseline JPEG of the given segments (ascending raster indices), one MCU row each,
     ``interval`` MCUs wide."""
-    return bytes(_splice(layout, segments))
+    return _splice(layout, segments).tobytes()
 
 
-def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> bytearray:
+def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> NDArray[np.uint8]:
     """:func:`splice`, ``across`` segments to a row (``len(segments)`` a multiple)."""
     seg_w, seg_h = layout.segment_px
     seg = np.asarray(segments, dtype=np.intp)
@@ -216,34 +259,72 @@ def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> 
         raise ParameterError(
             "segments", f"must number 1..{_MAX_SEGMENTS * across}, {across} to a row, got {n}"
         )
-    head = bytearray(layout.header)
-    struct.pack_into(">HH", head, layout.sof_size_at, n // across * seg_h, across * seg_w)
-    # Runs of consecutive segments are one stretch of the scan each, their restart
-    # markers in it; every segment after the first follows its marker (two bytes),
-    # renumbered RST0..7 in the splice's order once the bytes are joined.
-    brk = np.flatnonzero(seg[1:] != seg[:-1] + 1) + 1
-    lo = layout.starts[seg[np.concatenate(([0], brk))]] - 2
-    lo[0] += 2
-    hi = layout.ends[seg[np.concatenate((brk - 1, [n - 1]))]]
-    scan = memoryview(layout.data)
-    out = bytearray().join(
-        [head, *[scan[a:b] for a, b in zip(lo.tolist(), hi.tolist(), strict=True)], _EOI]
+    out = _spliced(
+        np.frombuffer(layout.data, dtype=np.uint8),
+        layout.starts,
+        layout.ends,
+        seg,
+        layout.sof_size_at,
+        n // across * seg_h,
+        across * seg_w,
     )
-    if n > 1:
-        lens = layout.ends[seg[:-1]] - layout.starts[seg[:-1]]
-        at = len(head) + np.cumsum(lens) + 2 * np.arange(1, n) - 1
-        np.frombuffer(out, dtype=np.uint8)[at] = 0xD0 + (np.arange(n - 1) & 7)
+    if out.size == 0:
+        raise ParameterError("segments", f"must be 0..{len(layout.starts) - 1}")
+    return out
+
+
+@kernel
+def _spliced(
+    data: NDArray[np.uint8],
+    starts: NDArray[np.intp],
+    ends: NDArray[np.intp],
+    seg: NDArray[np.intp],
+    sof_at: int,
+    height_px: int,
+    width_px: int,
+) -> NDArray[np.uint8]:
+    """The bytes of a splice: the header up to the scan (``starts[0]`` bytes) with the
+    frame's size rewritten, each segment's data after an ``RSTn`` renumbered in the
+    splice's order (0..7 in turn), EOI; empty when a segment is not one of the layout's."""
+    n_all = starts.size
+    head = starts[0]
+    total = head + 2 * seg.size  # the restart markers and EOI
+    for j in range(seg.size):
+        if not 0 <= seg[j] < n_all:
+            return np.zeros(0, dtype=np.uint8)
+        total += ends[seg[j]] - starts[seg[j]]
+    out = np.empty(total, dtype=np.uint8)
+    for i in range(np.uint64(head)):  # unsigned offsets: see _put_segments
+        out[i] = data[i]
+    out[sof_at] = (height_px >> 8) & 0xFF
+    out[sof_at + 1] = height_px & 0xFF
+    out[sof_at + 2] = (width_px >> 8) & 0xFF
+    out[sof_at + 3] = width_px & 0xFF
+    o = head
+    for j in range(seg.size):
+        if j:
+            out[o] = 0xFF
+            out[o + 1] = 0xD0 + ((j - 1) & 7)
+            o += 2
+        a = np.uint64(starts[seg[j]])
+        m = np.uint64(ends[seg[j]] - starts[seg[j]])
+        at = np.uint64(o)
+        for i in range(m):
+            out[at + i] = data[a + i]
+        o += ends[seg[j]] - starts[seg[j]]
+    out[o] = 0xFF
+    out[o + 1] = 0xD9
     return out
 
 
 def _decoded(
     layout: JpegLayout, segments: NDArray[np.intp]
-) -> Iterator[tuple[NDArray[np.intp], NDArray[np.uint8]]]:
-    """The given segments decoded, as ``(segments', pixels (rows, across, 8, 8 *
-    interval))`` per splice: each splice's rows hold ``across`` segments side by side
-    (about :data:`_ROW_PX` wide: the decoder's cost per output line, not per segment,
-    is what narrow segments one to a row pay for), the last row filled up with its
-    last segment again; ``segments'`` in the pixels' order, so padded too."""
+) -> Iterator[tuple[NDArray[np.intp], NDArray[np.uint8], int]]:
+    """The given segments decoded, as ``(segments', pixels, across)`` per splice: each
+    splice's rows hold ``across`` segments side by side (about :data:`_ROW_PX` wide: the
+    decoder's cost per output line, not per segment, is what narrow segments one to a
+    row pay for), the last row filled up with its last segment again; ``segments'`` in
+    the pixels' order, so padded too."""
     seg_w, seg_h = layout.segment_px
     segments = np.asarray(segments, dtype=np.intp)
     across = max(1, _ROW_PX // seg_w)
@@ -258,7 +339,7 @@ def _decoded(
         img = _imdecode(_splice(layout, part, a))
         if img.shape != (rows * seg_h, a * seg_w):
             raise DecodeError(len(layout.data))
-        yield part, img.reshape(rows, seg_h, a, seg_w).transpose(0, 2, 1, 3)
+        yield part, img, a
 
 
 def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.uint8]:
@@ -266,30 +347,63 @@ def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[n
     ``(8 * len(segments), 8 * interval)``. Raises :class:`~vision.errors.DecodeError`
     when they do not decode."""
     seg_w, seg_h = layout.segment_px
-    # only the last splice is padded: its extra segments are cut off the end
-    parts = [pixels.reshape(-1, seg_h, seg_w) for _, pixels in _decoded(layout, segments)]
-    if not parts:
-        return np.zeros((0, seg_w), np.uint8)
-    out = parts[0] if len(parts) == 1 else np.concatenate(parts)
-    return out[: len(segments)].reshape(-1, seg_w)
+    out = np.empty((len(segments) * seg_h, seg_w), dtype=np.uint8)
+    done = 0
+    for part, pixels, across in _decoded(layout, segments):
+        # only the last splice is padded: its extra segments are not copied
+        at = np.arange(done, min(done + len(part), len(segments)), dtype=np.intp)
+        _put_segments(out, 1, at, pixels, across, seg_h, seg_w)
+        done += len(at)
+    return out
 
 
 def decode_into(layout: JpegLayout, canvas: NDArray[np.uint8], segments: NDArray[np.intp]) -> None:
     """Decode the given segments (ascending raster indices) into their place in a
     :func:`blank_canvas` (in place; what is there already stays where no segment is
     given). Raises :class:`~vision.errors.DecodeError` when they do not decode."""
-    grid = _grid(layout, canvas)
-    for part, pixels in _decoded(layout, segments):
-        at = part.reshape(pixels.shape[:2])
-        grid[at // layout.per_row, at % layout.per_row] = pixels
+    _check_canvas(layout, canvas)
+    seg_w, seg_h = layout.segment_px
+    for part, pixels, across in _decoded(layout, segments):
+        _put_segments(canvas, layout.per_row, part, pixels, across, seg_h, seg_w)
 
 
-def _grid(layout: JpegLayout, canvas: NDArray[np.uint8]) -> NDArray[np.uint8]:
-    """A canvas as [segment row, segment col, row, col] (a view)."""
+@kernel
+def _put_segments(
+    canvas: NDArray[np.uint8],
+    per_row: int,
+    at: NDArray[np.intp],
+    pixels: NDArray[np.uint8],
+    across: int,
+    seg_h: int,
+    seg_w: int,
+) -> None:
+    """Copy the segments of ``pixels`` (``across`` to a row, in raster order) to their
+    places ``at`` in ``canvas`` (``per_row`` to a row), as many as ``at`` holds."""
+    # Row by row over the flat arrays with unsigned offsets: no negative-index check per
+    # byte, so the copy is vectorised (a slice assignment checks for overlap, slower).
+    dst = canvas.ravel()
+    src = pixels.ravel()
+    dst_w = np.uint64(canvas.shape[1])
+    src_w = np.uint64(pixels.shape[1])
+    width = np.uint64(seg_w)
+    for j in range(at.size):
+        r0 = at[j] // per_row * seg_h
+        c0 = at[j] % per_row * seg_w
+        pr = j // across * seg_h
+        pc = j % across * seg_w
+        for y in range(seg_h):
+            a = np.uint64(r0 + y) * dst_w + np.uint64(c0)
+            b = np.uint64(pr + y) * src_w + np.uint64(pc)
+            for x in range(width):
+                dst[a + x] = src[b + x]
+
+
+def _check_canvas(layout: JpegLayout, canvas: NDArray[np.uint8]) -> None:
     seg_w, seg_h = layout.segment_px
     if canvas.shape != (layout.mcu_rows * seg_h, layout.per_row * seg_w):
         raise ParameterError("canvas", f"must be the layout's blank_canvas, got {canvas.shape}")
-    return canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
+    if not canvas.flags.c_contiguous or canvas.dtype != np.uint8:
+        raise ParameterError("canvas", "must be a C-contiguous uint8 array (a blank_canvas)")
 
 
 def blank_canvas(layout: JpegLayout, fill: int) -> NDArray[np.uint8]:
@@ -308,11 +422,14 @@ def paste(
     """Put decoded segments (:func:`decode_segments`) in their place in a
     :func:`blank_canvas` (in place)."""
     seg_w, seg_h = layout.segment_px
-    grid = _grid(layout, canvas)
-    segments = np.asarray(segments, dtype=np.intp)
-    grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
-        len(segments), seg_h, seg_w
-    )
+    _check_canvas(layout, canvas)
+    seg = np.array(segments, dtype=np.intp)  # writable: one compiled form of the kernel
+    if seg.size and not (0 <= seg.min() and seg.max() < len(layout.starts)):
+        raise ParameterError("segments", f"must be 0..{len(layout.starts) - 1}")
+    if strip.size != seg.size * seg_h * seg_w:
+        raise ParameterError("strip", f"must hold {seg.size} segments of {seg_h} x {seg_w}")
+    pixels = np.ascontiguousarray(strip, dtype=np.uint8).reshape(-1, seg_w)
+    _put_segments(canvas, layout.per_row, seg, pixels, 1, seg_h, seg_w)
 
 
 def image_of(layout: JpegLayout, canvas: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -344,7 +461,9 @@ def decode_reduced(data: bytes, reduction: int) -> NDArray[np.uint8]:
     return _imdecode(data, flags[reduction])
 
 
-def _imdecode(data: bytes | bytearray, flags: int = cv2.IMREAD_GRAYSCALE) -> NDArray[np.uint8]:
+def _imdecode(
+    data: bytes | NDArray[np.uint8], flags: int = cv2.IMREAD_GRAYSCALE
+) -> NDArray[np.uint8]:
     buf = np.frombuffer(data, dtype=np.uint8)
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)

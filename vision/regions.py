@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 
 from vision.codec import decode
 from vision.frame_measurement import FrameMeasurement
+from vision.jit import kernel
 from vision.jpeg_regions import (
     JpegLayout,
     blank_canvas,
@@ -48,7 +49,6 @@ from vision.jpeg_regions import (
     image_of,
     jpeg_layout,
     paste,
-    segment_hits,
     segments_of_blocks,
 )
 from vision.locate import (
@@ -60,7 +60,6 @@ from vision.locate import (
     working_width,
 )
 from vision.measure import Measurer
-from vision.sampling import unit_step_gradient
 
 _BLOCK_PX = 8
 #: Reach of the edge scans beyond a strip's half width (px): the scan's margin, the
@@ -149,7 +148,7 @@ class RegionReader:
             return None
         # The background's level: the circles' median sample (the beam covers a few % of
         # them); what is not decoded is that constant.
-        level = int(_median_u8(strip[::2, ::4]))
+        level = int(_median_sampled(strip, 2, 4))
         canvas = blank_canvas(layout, level)
         paste(layout, canvas, ring_segs, strip)
         image = image_of(layout, canvas)
@@ -164,7 +163,7 @@ class RegionReader:
         done[ring_segs] = True
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
-            new = np.flatnonzero(segment_hits(layout, want) & ~done)
+            new = _missing(want, done, layout.interval)
             if new.size:
                 try:
                     decode_into(layout, canvas, new)
@@ -177,7 +176,7 @@ class RegionReader:
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, w0, shape)
-            if not np.any(segment_hits(layout, read) & ~done):
+            if _missing(read, done, layout.interval).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
@@ -339,93 +338,239 @@ class RegionReader:
         """The blocks within ``half_m`` (plane) of polylines ``(line (K, 2) plane m,
         half_m)``, each line's ends extended by its ``half_m``, and a block more all
         round; everything when a line reaches behind the camera."""
-        centres, tangents, halves, counts = [], [], [], []
-        for line_m, half_m in tubes:
-            got = _dense_line(np.asarray(line_m, dtype=np.float64), half_m)
-            if got is not None:
-                centres.append(got[0])
-                tangents.append(got[1])
-                halves.append(half_m)
-                counts.append(len(got[0]))
-        mask = np.zeros(shape, dtype=np.uint8)
-        if not centres:
-            return mask.view(bool)
+        lines = np.concatenate([np.asarray(line, dtype=np.float64) for line, _ in tubes])
+        counts = np.array([len(line) for line, _ in tubes], dtype=np.intp)
+        halves = np.array([half for _, half in tubes], dtype=np.float64)
         # every tube's centre line, its ends extended, and its two sides, in one mapping
-        pts = np.concatenate(centres) if len(centres) > 1 else centres[0]
-        t = np.concatenate(tangents) if len(tangents) > 1 else tangents[0]
-        n = np.array(counts)
-        first = np.cumsum(n) - n
-        last = first + n - 1
-        h = np.repeat(np.array(halves, dtype=np.float64), n)[:, None]
-        pts[first] -= h[first] * t[first]
-        pts[last] += h[last] * t[last]
-        off = h * t[:, ::-1]
-        off[:, 0] = -off[:, 0]  # the normal (-t_y, t_x), half_m long
-        k = len(pts)
-        px_all = self.measurer.calibration.to_px(np.concatenate((pts, pts + off, pts - off)))
-        if not np.all(np.isfinite(px_all)):
+        pts, first, bounded = _tube_points(lines, counts, halves)
+        if not bounded:
             return np.ones(shape, dtype=bool)
-        centre = px_all[:k]
-        side = np.maximum(
-            np.hypot(*(px_all[k : 2 * k] - centre).T), np.hypot(*(px_all[2 * k :] - centre).T)
-        )
-        half_px = np.maximum.reduceat(side, first).tolist()
-        blk = np.clip(centre / _BLOCK_PX * 16.0, -(2**27), 2**27).round().astype(np.int32)
-        for i0, m, hp in zip(first.tolist(), counts, half_px, strict=True):
+        mask = np.zeros(shape, dtype=np.uint8)
+        if first.size == 0:
+            return mask.view(bool)
+        px_all = self.measurer.calibration.to_px(pts)
+        blk, thick = _tube_pixels(px_all, first, _BLOCK_PX)
+        if thick.size == 0:  # a point off to infinity: behind the camera
+            return np.ones(shape, dtype=bool)
+        bounds = [*first.tolist(), len(blk)]
+        for i, t in enumerate(thick.tolist()):
             # a thick polyline (round ends and joins) in blocks, a block of slack all round
-            thick = min(2 * math.ceil(hp / _BLOCK_PX) + 3, 32767)
-            cv2.polylines(mask, [blk[i0 : i0 + m].reshape(-1, 1, 2)], False, 1, thick, shift=4)
+            line = blk[bounds[i] : bounds[i + 1]].reshape(-1, 1, 2)
+            cv2.polylines(mask, [line], False, 1, t, shift=4)
         return mask.view(bool)  # 0 and 1
 
 
-def _dense_line(
-    line: NDArray[np.float64], half_m: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-    """Points along a polyline (K, 2), ``half_m / 2`` apart or closer (straight in the
-    plane is curved in the image), and the unit tangents there; None for a line of no
-    length (its non-finite points dropped)."""
-    if not np.isfinite(line).all():
-        line = line[np.all(np.isfinite(line), axis=1)]
-    if len(line) < 2:
-        return None
-    if len(line) == 2:
-        (x0, y0), (x1, y1) = line.tolist()
-        length = math.hypot(x1 - x0, y1 - y0)
-        if not length > 0:
-            return None
-        n = max(2, int(length / (0.5 * half_m)) + 2)
-        u = np.arange(n, dtype=np.float64) / (n - 1)
-        pts = np.empty((n, 2))
-        pts[:, 0] = x0 + u * (x1 - x0)
-        pts[:, 1] = y0 + u * (y1 - y0)
-        pts[-1] = x1, y1
-        t = np.empty((n, 2))
-        t[:] = (x1 - x0) / length, (y1 - y0) / length
-        return pts, t
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))))
-    if not s[-1] > 0:
-        return None
-    sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
-    pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
-    t = unit_step_gradient(pts)
-    t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
-    return pts, t
+#: Points of one tube's centre line at most this many (a line of no finite length or a
+#: width of ~0 would ask for more): beyond, the tubes are taken to cover everything.
+_MAX_LINE_POINTS = 1 << 20
+
+
+@kernel
+def _tube_points(
+    lines: NDArray[np.float64], counts: NDArray[np.intp], halves: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.intp], bool]:
+    """Each tube's line (``counts[i]`` rows of ``lines``, its non-finite points dropped)
+    as points ``halves[i] / 2`` apart or closer (straight in the plane is curved in the
+    image; a polyline's by its arc length, as ``np.interp``), with unit tangents there
+    (central differences, one-sided at the ends), its ends extended by its half width,
+    and the points a half width either side:
+    ``(centres, sides +, sides -)`` stacked (3 k, 2) and the index of each kept tube's
+    first point (tubes of no length dropped); False when one would take more than
+    :data:`_MAX_LINE_POINTS` points (not finite, or no width)."""
+    n_tubes = counts.size
+    # the finite points of each line, in order, and the number of points along it
+    clean = np.empty((lines.shape[0], 2))
+    kept = np.zeros(n_tubes, dtype=np.intp)
+    dense = np.zeros(n_tubes, dtype=np.intp)
+    length = np.zeros(n_tubes)
+    at = 0
+    for i in range(n_tubes):
+        m = 0
+        for j in range(at, at + counts[i]):
+            if math.isfinite(lines[j, 0]) and math.isfinite(lines[j, 1]):
+                clean[at + m, 0] = lines[j, 0]  # element-wise: a row assignment
+                clean[at + m, 1] = lines[j, 1]  # costs seconds of compile time
+                m += 1
+        kept[i] = m
+        if m >= 2:
+            if m == 2:
+                total = math.hypot(clean[at + 1, 0] - clean[at, 0], clean[at + 1, 1] - clean[at, 1])
+            else:
+                total = 0.0
+                for j in range(at + 1, at + m):
+                    total += math.hypot(
+                        clean[j, 0] - clean[j - 1, 0], clean[j, 1] - clean[j - 1, 1]
+                    )
+            if total > 0:
+                steps = total / (0.5 * halves[i])
+                if not steps < _MAX_LINE_POINTS:
+                    return np.zeros((0, 2)), np.zeros(0, np.intp), False
+                length[i] = total
+                dense[i] = max(2, int(steps) + 2)
+        at += counts[i]
+    k = 0
+    n_kept = 0
+    for i in range(n_tubes):
+        k += dense[i]
+        n_kept += dense[i] > 0
+    out = np.empty((3 * k, 2))
+    first = np.empty(n_kept, dtype=np.intp)
+    t = np.empty((k, 2))
+    at = 0
+    o = 0
+    i_kept = 0
+    for i in range(n_tubes):
+        n = dense[i]
+        if n == 0:
+            at += counts[i]
+            continue
+        first[i_kept] = o
+        i_kept += 1
+        if kept[i] == 2:  # straight: evenly spaced, the end exact
+            x0, y0 = clean[at, 0], clean[at, 1]
+            x1, y1 = clean[at + 1, 0], clean[at + 1, 1]
+            for j in range(n):
+                u = j / (n - 1)
+                out[o + j, 0] = x0 + u * (x1 - x0)
+                out[o + j, 1] = y0 + u * (y1 - y0)
+                t[o + j, 0] = (x1 - x0) / length[i]
+                t[o + j, 1] = (y1 - y0) / length[i]
+            out[o + n - 1, 0] = x1
+            out[o + n - 1, 1] = y1
+        else:  # np.interp at np.linspace(0, length, n) of the arc length
+            m = kept[i]
+            s = np.empty(m)
+            s[0] = 0.0
+            for j in range(1, m):
+                d = math.hypot(
+                    clean[at + j, 0] - clean[at + j - 1, 0], clean[at + j, 1] - clean[at + j - 1, 1]
+                )
+                s[j] = s[j - 1] + d
+            step = s[m - 1] / (n - 1)
+            seg = 0
+            for j in range(n):
+                x = j * step if j < n - 1 else s[m - 1]
+                while seg + 1 < m and s[seg + 1] <= x:
+                    seg += 1
+                for c in range(2):
+                    y0 = clean[at + seg, c]
+                    if seg == m - 1 or s[seg] == x:
+                        v = y0
+                    else:
+                        y1 = clean[at + seg + 1, c]
+                        slope = (y1 - y0) / (s[seg + 1] - s[seg])
+                        v = slope * (x - s[seg]) + y0
+                        if math.isnan(v):
+                            v = slope * (x - s[seg + 1]) + y1
+                            if math.isnan(v) and y0 == y1:
+                                v = y0
+                    out[o + j, c] = v
+            # unit tangents: central differences, one-sided at the ends
+            for j in range(n):
+                lo = j - 1 if j > 0 else 0
+                hi = j + 1 if j < n - 1 else n - 1
+                for c in range(2):
+                    d = out[o + hi, c] - out[o + lo, c]
+                    t[o + j, c] = d / 2.0 if 0 < j < n - 1 else d
+            for j in range(n):
+                norm = max(math.hypot(t[o + j, 0], t[o + j, 1]), 1e-12)
+                t[o + j, 0] /= norm
+                t[o + j, 1] /= norm
+        # the ends extended by the half width, then the sides
+        h = halves[i]
+        for c in range(2):
+            out[o, c] -= h * t[o, c]
+            out[o + n - 1, c] += h * t[o + n - 1, c]
+        for j in range(o, o + n):
+            ox = -(h * t[j, 1])
+            oy = h * t[j, 0]
+            out[k + j, 0] = out[j, 0] + ox
+            out[k + j, 1] = out[j, 1] + oy
+            out[2 * k + j, 0] = out[j, 0] - ox
+            out[2 * k + j, 1] = out[j, 1] - oy
+        o += n
+        at += counts[i]
+    return out, first, True
+
+
+@kernel
+def _tube_pixels(
+    px: NDArray[np.float64], first: NDArray[np.intp], block_px: int
+) -> tuple[NDArray[np.int32], NDArray[np.intp]]:
+    """From :func:`_tube_points` in pixels: the centre lines in 1/16 blocks (rounded
+    half to even, clipped to +-2**27), and each tube's thickness in blocks (twice its
+    widest half width, rounded up, and 3); both empty when a point is not finite."""
+    k = px.shape[0] // 3
+    blk = np.empty((k, 2), dtype=np.int32)
+    thick = np.empty(first.size, dtype=np.intp)
+    for j in range(3 * k):
+        if not (math.isfinite(px[j, 0]) and math.isfinite(px[j, 1])):
+            return np.zeros((0, 2), dtype=np.int32), np.zeros(0, dtype=np.intp)
+    lim = float(2**27)
+    for j in range(k):
+        for c in range(2):
+            v = px[j, c] / block_px * 16.0
+            blk[j, c] = np.int32(np.rint(min(max(v, -lim), lim)))
+    for i in range(first.size):
+        end = first[i + 1] if i + 1 < first.size else k
+        widest = 0.0
+        for j in range(first[i], end):
+            a = math.hypot(px[k + j, 0] - px[j, 0], px[k + j, 1] - px[j, 1])
+            b = math.hypot(px[2 * k + j, 0] - px[j, 0], px[2 * k + j, 1] - px[j, 1])
+            side = max(a, b)
+            widest = side if j == first[i] else max(widest, side)
+        thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
+    return blk, thick
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    n = float(np.hypot(v[0], v[1]))
+    n = float(math.hypot(v[0], v[1]))
     return v / n if n > 0 else np.array([1.0, 0.0])
 
 
-def _median_u8(values: NDArray[np.uint8]) -> float:
-    """``np.median`` of 8-bit values, from their histogram (a partition of tens of
-    thousands of values costs several times more; OpenCV's histogram a third of
-    numpy's, its float32 counts exact below 2**24 values)."""
-    if values.size < 1 << 24:
-        hist = cv2.calcHist([values], [0], None, [256], [0, 256]).ravel().astype(np.int64)
-    else:
-        hist = np.bincount(values.ravel(), minlength=256)
-    cum = np.cumsum(hist)
-    n = int(cum[-1])
-    lo, hi = np.searchsorted(cum, [(n - 1) // 2, n // 2], side="right")
+@kernel
+def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -> float:
+    """``np.median(values[::step_rows, ::step_cols])`` of a 2-D uint8 array, from the
+    samples' histogram (a partition of tens of thousands of values costs several times
+    more)."""
+    hist = np.zeros(256, dtype=np.int64)
+    flat = values.ravel()
+    width = np.uint64(values.shape[1])
+    step = np.uint64(step_cols)
+    for r in range(0, values.shape[0], step_rows):  # unsigned offsets: no wraparound checks
+        row = np.uint64(r) * width
+        for c in range(np.uint64(0), width, step):
+            hist[flat[row + c]] += 1
+    n = 0
+    for v in range(256):
+        n += hist[v]
+    # the values of rank (n - 1) // 2 and n // 2: the first whose count reaches past it
+    lo = hi = 256
+    cum = 0
+    for v in range(256):
+        cum += hist[v]
+        if lo == 256 and cum > (n - 1) // 2:
+            lo = v
+        if cum > n // 2:
+            hi = v
+            break
     return 0.5 * (float(lo) + float(hi))
+
+
+@kernel
+def _missing(blocks: NDArray[np.bool_], done: NDArray[np.bool_], interval: int) -> NDArray[np.intp]:
+    """The segments holding a True block of ``blocks`` (C order: segment ``s`` is blocks
+    ``s * interval`` to ``(s + 1) * interval`` in raster order) and not ``done``."""
+    out = np.empty(done.size, dtype=np.intp)
+    n = 0
+    flat = blocks.ravel()
+    k = np.uint64(interval)
+    for seg in range(done.size):  # a segment's blocks are interval in a row of the mask
+        at = np.uint64(seg) * k  # unsigned offsets: no wraparound checks
+        hit = False
+        for c in range(k):
+            hit |= flat[at + c]  # no branch per block: an OR the compiler vectorises
+        if hit and not done[seg]:
+            out[n] = seg
+            n += 1
+    return out[:n]
