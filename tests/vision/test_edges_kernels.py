@@ -27,6 +27,7 @@ from tests.vision import edges_reference as ref
 from vision.edges import (
     _erf_step,
     _median9,
+    _median_even,
     _ndtr_from_weight,
     _smoothed,
     erf_edge,
@@ -208,3 +209,12 @@ def test_median_of_nine_on_ties_and_random_values() -> None:
     rng = np.random.default_rng(2)
     for x in itertools.chain(rng.integers(0, 4, (300, 9)).astype(float), rng.normal(size=(300, 9))):
         assert _median9(x) == np.median(x)
+
+
+def test_median_of_an_even_count_on_ties_and_random_values() -> None:
+    rng = np.random.default_rng(6)
+    for n in (2, 4, 10, 12):
+        for x in itertools.chain(
+            rng.integers(0, 4, (200, n)).astype(float), rng.normal(size=(200, n))
+        ):
+            assert _median_even(x) == np.median(x)
