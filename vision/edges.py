@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.jit import kernel
-from vision.sampling import unit_step_gradient
 
 
 def edge_moment(
@@ -162,23 +161,95 @@ def _scan_lines(
         hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
     # Along-scan positions and scan-line indices (columns: rows and columns of the image).
     h, w = shape if columns else shape[::-1]
-    x0 = int(np.ceil(x[0]))
-    x1 = int(np.floor(x[-1]))
-    lines = np.arange(max(x0, 0), min(x1, w - 1) + 1)
-    if lines.size < 2:
+    lines, yc, half, top, reach = _line_geometry(x, y, hw, h, w, margin_px + max_window)
+    if reach < 0 or not len(lines):
         return None
-    yc = np.interp(lines, x, y)
-    # d yc / d line (lines one apart; two lines: taken as level)
-    slope = unit_step_gradient(yc) if lines.size > 2 else np.zeros_like(yc)
-    half = np.interp(lines, x, hw) * np.sqrt(1.0 + slope**2)
-    reach = int(np.ceil(np.max(half))) + margin_px + max_window
-    top = np.round(yc).astype(np.intp) - reach
-    inside = (top >= 0) & (top + 2 * reach < h)
-    if inside.all():
-        return _Lines(columns, lines, yc, half, top, reach)
-    if not inside.any():
-        return None
-    return _Lines(columns, lines[inside], yc[inside], half[inside], top[inside], reach)
+    return _Lines(columns, lines, yc, half, top, reach)
+
+
+@kernel
+def _line_geometry(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    hw: NDArray[np.float64],
+    h: int,
+    w: int,
+    extra: int,
+) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp], int]:
+    """The scan lines ``ceil(x[0]) .. floor(x[-1])`` within ``0 .. w - 1`` of a strip
+    whose centre is at ``y`` and half width ``hw`` across it at ``x`` (increasing): the
+    centre and the half width along each line (widened by the centre line's slope,
+    central differences; two lines taken as level), the first sample's position and the
+    lines' reach (the widest half width, rounded up, plus ``extra``); only the lines
+    whose 2 reach + 1 samples fit ``0 .. h - 1``. Reach -1: fewer than two lines."""
+    first = max(math.ceil(x[0]), 0)
+    last = min(math.floor(x[-1]), w - 1)
+    count = last - first + 1
+    if count < 2:
+        return np.empty(0, np.intp), np.empty(0), np.empty(0), np.empty(0, np.intp), -1
+    lines = np.arange(first, last + 1)
+    yc = _interp(lines, x, y)
+    half = _interp(lines, x, hw)
+    for i in range(count):
+        # d yc / d line (lines one apart), as np.gradient
+        if count == 2:
+            slope = 0.0
+        elif i == 0:
+            slope = yc[1] - yc[0]
+        elif i == count - 1:
+            slope = yc[i] - yc[i - 1]
+        else:
+            slope = (yc[i + 1] - yc[i - 1]) / 2.0
+        half[i] *= np.sqrt(1.0 + slope * slope)
+    reach = math.ceil(half.max()) + extra
+    keep = np.empty(count, dtype=np.bool_)
+    top = np.empty(count, dtype=np.intp)
+    kept = 0
+    for i in range(count):
+        top[i] = int(np.rint(yc[i])) - reach
+        keep[i] = top[i] >= 0 and top[i] + 2 * reach < h
+        kept += keep[i]
+    if kept == count:
+        return lines, yc, half, top, reach
+    return lines[keep], yc[keep], half[keep], top[keep], reach
+
+
+@kernel
+def _interp(
+    xq: NDArray[np.intp], xp: NDArray[np.float64], fp: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``np.interp(xq, xp, fp)`` (``xp`` increasing, two points or more), to the bit:
+    its interval (the last ``j`` with ``xp[j] <= x``), its exact hits and its slope
+    formula."""
+    n = len(xp)
+    out = np.empty(len(xq))
+    for i in range(len(xq)):
+        xv = np.float64(xq[i])
+        if xv > xp[n - 1]:
+            out[i] = fp[n - 1]
+            continue
+        if xv < xp[0]:
+            out[i] = fp[0]
+            continue
+        lo, hi = 0, n  # the first index with xp > xv, by bisection
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if xv < xp[mid]:
+                hi = mid
+            else:
+                lo = mid + 1
+        j = lo - 1
+        if j == n - 1 or xp[j] == xv:
+            out[i] = fp[j]
+            continue
+        slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+        r = slope * (xv - xp[j]) + fp[j]
+        if np.isnan(r):  # numpy's second try, from the other end
+            r = slope * (xv - xp[j + 1]) + fp[j + 1]
+            if np.isnan(r) and fp[j] == fp[j + 1]:
+                r = fp[j]
+        out[i] = r
+    return out
 
 
 def _scan(
@@ -444,7 +515,11 @@ def _smoothed(x: NDArray[np.float64], bounds: NDArray[np.intp]) -> NDArray[np.fl
         for i in range(a, b):
             for o in range(size):
                 win[o] = x[min(max(i - h + o, a), b - 1)]
-            out[i] = _median9(win) if size == 9 else _select_middle(win, size)
+            if size == 9:
+                out[i] = _median9(win)
+            else:
+                _sort(win[:size])
+                out[i] = win[h]
     return out
 
 
@@ -453,32 +528,18 @@ def _median9(p: NDArray[np.float64]) -> float:
     """The median of the 9 values ``p`` (no NaN), exactly and without branches: the
     median of the three sorted triples' largest minimum, median of medians and smallest
     maximum (a min/max network, checked on every 0-1 input)."""
-    a0, a1, a2 = _sort3(p[0], p[1], p[2])
-    b0, b1, b2 = _sort3(p[3], p[4], p[5])
-    c0, c1, c2 = _sort3(p[6], p[7], p[8])
+    lo, hi = min(p[0], p[1]), max(p[0], p[1])
+    a0, a1, a2 = min(lo, p[2]), min(hi, max(lo, p[2])), max(hi, p[2])
+    lo, hi = min(p[3], p[4]), max(p[3], p[4])
+    b0, b1, b2 = min(lo, p[5]), min(hi, max(lo, p[5])), max(hi, p[5])
+    lo, hi = min(p[6], p[7]), max(p[6], p[7])
+    c0, c1, c2 = min(lo, p[8]), min(hi, max(lo, p[8])), max(hi, p[8])
     first = max(max(a0, b0), c0)
     last = min(min(a2, b2), c2)
-    return _sort3(first, _sort3(a1, b1, c1)[1], last)[1]
-
-
-@kernel
-def _sort3(a: float, b: float, c: float) -> tuple[float, float, float]:
-    """Three values in order (no NaN), by min and max."""
-    lo, hi = min(a, b), max(a, b)
-    return min(lo, c), min(hi, max(lo, c)), max(hi, max(lo, c))
-
-
-@kernel
-def _select_middle(win: NDArray[np.float64], size: int) -> float:
-    """The middle one of the first ``size`` (odd) values of ``win``, sorted in place."""
-    for k in range(1, size):
-        v = win[k]
-        q = k
-        while q > 0 and win[q - 1] > v:
-            win[q] = win[q - 1]
-            q -= 1
-        win[q] = v
-    return win[size // 2]
+    lo, hi = min(a1, b1), max(a1, b1)
+    mid = min(hi, max(lo, c1))
+    lo, hi = min(first, mid), max(first, mid)
+    return min(hi, max(lo, last))
 
 
 @kernel

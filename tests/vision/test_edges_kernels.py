@@ -26,9 +26,11 @@ from scipy.special import ndtr
 from tests.vision import edges_reference as ref
 from vision.edges import (
     _erf_step,
+    _interp,
     _median9,
     _median_even,
     _ndtr_from_weight,
+    _scan_lines,
     _smoothed,
     erf_edge,
     strip_edges_many,
@@ -218,3 +220,37 @@ def test_median_of_an_even_count_on_ties_and_random_values() -> None:
             rng.integers(0, 4, (200, n)).astype(float), rng.normal(size=(200, n))
         ):
             assert _median_even(x) == np.median(x)
+
+
+def test_interp_is_numpys_to_the_bit() -> None:
+    rng = np.random.default_rng(12)
+    for n in (2, 3, 5, 40):
+        for _ in range(50):
+            xp = np.sort(rng.uniform(-5.0, 60.0, n))
+            if n > 2 and rng.random() < 0.3:  # repeated abscissae and exact hits
+                xp[1] = xp[2] = np.round(xp[2])
+                xp = np.sort(xp)
+            fp = rng.normal(0.0, 50.0, n)
+            xq = np.arange(-8, 64)
+            np.testing.assert_array_equal(_interp(xq, xp, fp), np.interp(xq, xp, fp))
+
+
+def test_scan_lines_are_the_numpy_lines() -> None:
+    """Strips of every direction and length, half widths scalar or per point, partly or
+    wholly off the image, a polyline given backwards."""
+    rng = np.random.default_rng(13)
+    shape = (300, 400)
+    for _ in range(300):
+        a = rng.uniform(-60.0, 460.0, 2)
+        b = a + rng.uniform(-200.0, 200.0, 2)
+        k = int(rng.integers(2, 40))
+        line = a + np.linspace(0.0, 1.0, k)[:, None] * (b - a) + rng.normal(0.0, 0.5, (k, 2))
+        hw: Any = rng.uniform(1.0, 25.0) if rng.random() < 0.5 else rng.uniform(1.0, 25.0, k)
+        margin, window = int(rng.integers(2, 7)), int(rng.integers(4, 9))
+        got = _scan_lines(shape, line, hw, margin, window)
+        want = ref._scan_lines(shape, line, hw, margin, window)
+        assert (got is None) == (want is None)
+        if got is not None and want is not None:
+            assert (got.columns, got.reach) == (want.columns, want.reach)
+            for f in ("lines", "yc", "half", "top"):
+                np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
