@@ -5,9 +5,10 @@ bias: each scan line across the strip gives a rising and a falling edge, located
 first moment of the intensity steps around the strongest step (exact for a box-sampled
 or symmetric-blurred step edge). The points are mapped to the plane afterwards.
 
-The scan lines' geometry is numpy (a few calls a strip); the scan itself, every line's
-samples, steepest steps, levels, windows and fits, is two compiled kernels (:mod:`vision.jit`)
-for all strips of a frame: its numpy form was ~150 array calls of a few microseconds each.
+The scan is compiled (:mod:`vision.jit`): one kernel call per strip for its scan lines'
+geometry, then for all strips of a frame one for every line's samples, steepest steps,
+levels and windows, and three for the erf fit; its numpy form was ~200 array calls of a
+few microseconds each (kept as the tests' reference, tests/vision/edges_reference.py).
 """
 
 from __future__ import annotations
@@ -108,10 +109,10 @@ def strip_edges_many(
     max_window: int = 8,
 ) -> list[StripEdges]:
     """:func:`strip_edges` for several strips ``(centre_px, half_width_px)`` at once: one
-    pass of array operations over all their scan lines (a pass's fixed cost is about
-    that of a thousand lines). Each strip keeps what it would have alone: its scan
-    direction (strips scanned the other way go in a second pass), its lines' reach and
-    background samples, its level smoothing and its own fitted edge width."""
+    pass of the kernels over all their scan lines. Each strip keeps what it would have
+    alone: its scan direction (strips scanned the other way go in a second pass), its
+    lines' reach and background samples, its level smoothing and its own fitted edge
+    width."""
     out = [_EMPTY] * len(strips)
     geos = [_scan_lines(image.shape, c, hw, margin_px, max_window) for c, hw in strips]
     for columns in (True, False):
