@@ -5,10 +5,10 @@ bias: each scan line across the strip gives a rising and a falling edge, located
 first moment of the intensity steps around the strongest step (exact for a box-sampled
 or symmetric-blurred step edge). The points are mapped to the plane afterwards.
 
-Layout: a strip's samples are held (position along the scan line, scan line) and every
-window about an edge (window sample, scan line). numpy then broadcasts the per-line
-quantities, and sums over a window, along the long axis; with the scan line first each
-operation would loop over a window of 9-18 samples at a time, several times slower.
+The scan is compiled (:mod:`vision.jit`): one kernel call per strip for its scan lines'
+geometry, then for all strips of a frame one for every line's samples, steepest steps,
+levels and windows, and three for the erf fit; its numpy form was ~200 array calls of a
+few microseconds each (kept as the tests' reference, tests/vision/edges_reference.py).
 """
 
 from __future__ import annotations
@@ -22,11 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.sampling import median, unit_step_gradient
-
-_INT16_MIN = np.int16(np.iinfo(np.int16).min)
-#: The profiles' padding above their first sample (and its negation below the last).
-_PAD_LEVEL = 1000
+from vision.jit import kernel
 
 
 def edge_moment(
@@ -113,10 +109,10 @@ def strip_edges_many(
     max_window: int = 8,
 ) -> list[StripEdges]:
     """:func:`strip_edges` for several strips ``(centre_px, half_width_px)`` at once: one
-    pass of array operations over all their scan lines (a pass's fixed cost is about
-    that of a thousand lines). Each strip keeps what it would have alone: its scan
-    direction (strips scanned the other way go in a second pass), its lines' reach and
-    background samples, its level smoothing and its own fitted edge width."""
+    pass of the kernels over all their scan lines. Each strip keeps what it would have
+    alone: its scan direction (strips scanned the other way go in a second pass), its
+    lines' reach and background samples, its level smoothing and its own fitted edge
+    width."""
     out = [_EMPTY] * len(strips)
     geos = [_scan_lines(image.shape, c, hw, margin_px, max_window) for c, hw in strips]
     for columns in (True, False):
@@ -166,23 +162,95 @@ def _scan_lines(
         hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
     # Along-scan positions and scan-line indices (columns: rows and columns of the image).
     h, w = shape if columns else shape[::-1]
-    x0 = int(np.ceil(x[0]))
-    x1 = int(np.floor(x[-1]))
-    lines = np.arange(max(x0, 0), min(x1, w - 1) + 1)
-    if lines.size < 2:
+    lines, yc, half, top, reach = _line_geometry(x, y, hw, h, w, margin_px + max_window)
+    if reach < 0 or not len(lines):
         return None
-    yc = np.interp(lines, x, y)
-    # d yc / d line (lines one apart; two lines: taken as level)
-    slope = unit_step_gradient(yc) if lines.size > 2 else np.zeros_like(yc)
-    half = np.interp(lines, x, hw) * np.sqrt(1.0 + slope**2)
-    reach = int(np.ceil(np.max(half))) + margin_px + max_window
-    top = np.round(yc).astype(np.intp) - reach
-    inside = (top >= 0) & (top + 2 * reach < h)
-    if inside.all():
-        return _Lines(columns, lines, yc, half, top, reach)
-    if not inside.any():
-        return None
-    return _Lines(columns, lines[inside], yc[inside], half[inside], top[inside], reach)
+    return _Lines(columns, lines, yc, half, top, reach)
+
+
+@kernel
+def _line_geometry(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    hw: NDArray[np.float64],
+    h: int,
+    w: int,
+    extra: int,
+) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp], int]:
+    """The scan lines ``ceil(x[0]) .. floor(x[-1])`` within ``0 .. w - 1`` of a strip
+    whose centre is at ``y`` and half width ``hw`` across it at ``x`` (increasing): the
+    centre and the half width along each line (widened by the centre line's slope,
+    central differences; two lines taken as level), the first sample's position and the
+    lines' reach (the widest half width, rounded up, plus ``extra``); only the lines
+    whose 2 reach + 1 samples fit ``0 .. h - 1``. Reach -1: fewer than two lines."""
+    first = max(math.ceil(x[0]), 0)
+    last = min(math.floor(x[-1]), w - 1)
+    count = last - first + 1
+    if count < 2:
+        return np.empty(0, np.intp), np.empty(0), np.empty(0), np.empty(0, np.intp), -1
+    lines = np.arange(first, last + 1)
+    yc = _interp(lines, x, y)
+    half = _interp(lines, x, hw)
+    for i in range(count):
+        # d yc / d line (lines one apart), as np.gradient
+        if count == 2:
+            slope = 0.0
+        elif i == 0:
+            slope = yc[1] - yc[0]
+        elif i == count - 1:
+            slope = yc[i] - yc[i - 1]
+        else:
+            slope = (yc[i + 1] - yc[i - 1]) / 2.0
+        half[i] *= np.sqrt(1.0 + slope * slope)
+    reach = math.ceil(half.max()) + extra
+    keep = np.empty(count, dtype=np.bool_)
+    top = np.empty(count, dtype=np.intp)
+    kept = 0
+    for i in range(count):
+        top[i] = int(np.rint(yc[i])) - reach
+        keep[i] = top[i] >= 0 and top[i] + 2 * reach < h
+        kept += keep[i]
+    if kept == count:
+        return lines, yc, half, top, reach
+    return lines[keep], yc[keep], half[keep], top[keep], reach
+
+
+@kernel
+def _interp(
+    xq: NDArray[np.intp], xp: NDArray[np.float64], fp: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``np.interp(xq, xp, fp)`` (``xp`` increasing, two points or more), to the bit:
+    its interval (the last ``j`` with ``xp[j] <= x``), its exact hits and its slope
+    formula."""
+    n = len(xp)
+    out = np.empty(len(xq))
+    for i in range(len(xq)):
+        xv = np.float64(xq[i])
+        if xv > xp[n - 1]:
+            out[i] = fp[n - 1]
+            continue
+        if xv < xp[0]:
+            out[i] = fp[0]
+            continue
+        lo, hi = 0, n  # the first index with xp > xv, by bisection
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if xv < xp[mid]:
+                hi = mid
+            else:
+                lo = mid + 1
+        j = lo - 1
+        if j == n - 1 or xp[j] == xv:
+            out[i] = fp[j]
+            continue
+        slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+        r = slope * (xv - xp[j]) + fp[j]
+        if np.isnan(r):  # numpy's second try, from the other end
+            r = slope * (xv - xp[j + 1]) + fp[j + 1]
+            if np.isnan(r) and fp[j] == fp[j + 1]:
+                r = fp[j]
+        out[i] = r
+    return out
 
 
 def _scan(
@@ -195,85 +263,39 @@ def _scan(
     max_window: int,
 ) -> list[StripEdges]:
     lines = np.concatenate([g.lines for g in geos])
-    yc = np.concatenate([g.yc for g in geos])
-    half = np.concatenate([g.half for g in geos])
-    top = np.concatenate([g.top for g in geos])
     sizes = [len(g.lines) for g in geos]
     n = len(lines)
     bounds = np.cumsum([0, *sizes])
-    # Each line spans its own strip's 2 reach + 1 samples; lines of a narrower strip
-    # carry samples past their end (clipped to the image) that nothing reads.
-    m = 2 * max(g.reach for g in geos) + 1
-    # The samples (position along the line, line) as int16: 8-bit values, their
-    # negations and steps are exact, at a quarter of the float traffic; every estimator
-    # converts only its small window. Both sides at once: the falling edge of a profile
-    # between levels lo and hi is the rising edge of the negated profile between -hi and
-    # -lo, so lines n.. hold -prof and every estimator below sees rising edges only (one
-    # call per stage, not two). ``max_window`` rows of padding above and below (never
-    # counted as samples) let every edge window be cut from one strided view.
-    pad = max_window
-    buf = np.empty((m + 2 * pad, 2 * n), dtype=np.int16)
-    buf[:pad] = _PAD_LEVEL  # stepping down into the line and out of it (+-255 at most)
-    buf[pad + m :] = -_PAD_LEVEL
-    prof2 = buf[pad : pad + m]  # whole rows: C-contiguous
-    prof = prof2[:, :n]
-    prof[...] = _line_samples(image, columns, lines, top, m)
-    np.negative(prof, out=prof2[:, n:])
-    base = top.astype(np.float64)
-    mid = yc - base  # centre's position in sample units
-    tol = np.maximum(0.35 * half, 2.5)
-    # The steepest rising step near each expected edge (lines n.. are the falling side).
-    # (Step k, between samples k and k + 1, sits at k + 0.5.)
-    peak = _argmax_near(prof2, np.concatenate([mid - half, mid + half]), np.tile(tol, 2))
-    # Ramp width (px) = contrast / steepest step: motion blur widens it; the moment
-    # window grows with it so a blurred edge is still located at its centre.
-    level_in = _inner_mean(prof, mid, 0.5 * half)
-    if len(geos) == 1:
-        far = prof[-margin_px:]
-    else:  # each line's own last samples
-        ends = np.repeat([2 * g.reach + 1 for g in geos], sizes)
-        far = _take_rows(prof2, ends - margin_px, margin_px, np.arange(n))
-    near = prof[:margin_px]
-    level_out = _median(np.concatenate([near, far]))
-    contrast = np.maximum(level_in - level_out, 1e-6)
-    at_peak = peak * (2 * n) + np.arange(2 * n)  # flat indices of the samples before
-    steepest = prof2.ravel()[at_peak + 2 * n] - prof2.ravel()[at_peak]
-    ramp = np.tile(contrast, 2) / np.maximum(steepest, 1e-6)
-    win = _clip(np.ceil(0.5 * ramp + 0.5), window, max_window).astype(np.intp)
-    lo2 = hi2 = None
-    if estimator in ("area", "erf"):
-        # The plateau levels smoothed along each strip (not across strips).
-        lo, hi = _smoothed_levels(level_out, level_in, bounds)
-        # The levels at each edge, not at the line's middle. Under uneven light the
-        # plateaus tilt, and levels taken at the middle put both edges of a strip off
-        # the same way, toward the light (by about the mid-level's change over a half
-        # width over the edge's slope: 0.004 px on a 21 px beam and 0.01 px on a 42 px
-        # hub with the light 15 % brighter across a 2048 px frame, which turned the hub
-        # angle +0.5 of its sd on average). The light scales what it falls on, so both
-        # levels tilt by the same fraction per sample: the background's, from the
-        # lines' two ends (44-64 samples apart), pooled over the strip's lines (the
-        # light is smooth; one line's tilt is mostly noise). The strip's own inner
-        # part is a short base (5-10 samples): its tilt, tried, was noisier, and moved
-        # the other renderer's even-light frames more.
-        spans = [2 * g.reach + 1 - margin_px for g in geos]  # between the ends' centres
-        tilt = _pooled_tilt(near, far, level_out, bounds, spans) * half
-        fa, fb = 1.0 - tilt, 1.0 + tilt  # the light at the edges, relative to the middle
-        lo2, hi2 = np.concatenate([lo * fa, -(hi * fb)]), np.concatenate([hi * fa, -(lo * fb)])
-    cen, step, area = _window_edges(buf, pad, peak, win, lo2, hi2)
-    if lo2 is not None and hi2 is not None:
-        cen = np.where(np.isfinite(area), area, cen)
-        if estimator == "erf":
-            # One edge width per strip and side.
-            blocks = [
-                np.arange(a, b) + off for off in (0, n) for a, b in itertools.pairwise(bounds)
-            ]
-            cen = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks=blocks)
+    reaches = np.array([g.reach for g in geos], dtype=np.intp)
+    levels = estimator in ("area", "erf")
+    buf, peak, cen, step, ramp, lo2, hi2 = _scan_kernel(
+        np.ascontiguousarray(image),
+        columns,
+        lines,
+        np.concatenate([g.top for g in geos]),
+        np.concatenate([g.yc for g in geos]),
+        np.concatenate([g.half for g in geos]),
+        bounds,
+        reaches,
+        margin_px,
+        window,
+        max_window,
+        levels,
+    )
+    # Each line spans its own strip's 2 reach + 1 samples (see _scan_kernel).
+    pad, m = max_window, 2 * int(reaches.max()) + 1
+    prof2 = buf[:, pad : pad + m]
+    if levels and estimator == "erf":
+        # One edge width per strip and side (lines n.. are the falling sides).
+        blocks = np.concatenate([bounds, bounds[1:] + n])
+        cen = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks)
     elif estimator == "gauss3":
-        g = edge_gauss3(np.subtract(prof2[1:], prof2[:-1]).T, peak)
+        g = edge_gauss3(np.subtract(prof2[:, 1:], prof2[:, :-1]), peak)
         cen = np.where(np.isfinite(g), g, cen)
     ca, cb = cen[:n], cen[n:]
     # (x, y): the line index and the position along it, whichever axis each is.
     line_axis, along_axis = (0, 1) if columns else (1, 0)
+    base = np.concatenate([g.top for g in geos]).astype(np.float64)
     side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
     side_a[:, line_axis] = side_b[:, line_axis] = lines
     np.add(base, ca, out=side_a[:, along_axis])
@@ -291,309 +313,315 @@ def _scan(
     return out
 
 
-def _clip(x: Any, lo: Any, hi: Any) -> Any:
-    """``np.clip`` by the two ufuncs (NaN stays NaN): ``np.clip``'s Python wrapper costs
-    more than the work on the arrays here."""
-    return np.minimum(np.maximum(x, lo), hi)
+#: The profiles' padding above their first sample (and its negation below the last).
+_PAD_LEVEL = 1000
 
 
-def _line_samples(
-    image: NDArray[np.uint8], columns: bool, lines: NDArray[np.intp], top: NDArray[np.intp], m: int
-) -> NDArray[np.uint8]:
-    """The ``m`` samples of each scan line from ``top`` on, (sample, line): pixel columns
-    ``lines`` (``columns``) or rows, positions past the image's edge taken at its last
-    pixel. Cut from a strided view of the flat image (one line's samples a fixed stride
-    apart), not gathered by an index array per sample. ``m`` is at most the lines'
-    length (every strip's own lines fit the image)."""
-    h_img, w = image.shape
-    if not columns:
-        h_img = w
-    flat = np.ascontiguousarray(image).ravel()
-    along, across = (w, 1) if columns else (1, w)
-    start = np.minimum(top, h_img - m) * along + lines * across
-    view = _strided(flat, (m, flat.size - (m - 1) * along), (along, 1))
-    out = view[:, start]
-    # Lines of a narrower strip run past the image by up to the reach's difference.
-    if len(top) and int(top.max()) > h_img - m:
-        over = np.flatnonzero(top > h_img - m)
-        idx = np.minimum(np.arange(m)[:, None] + top[over][None, :], h_img - 1)
-        out[:, over] = flat[idx * along + (lines[over] * across)[None, :]]
-    return np.asarray(out)
-
-
-def _strided(flat: NDArray[Any], shape: tuple[int, int], steps: tuple[int, int]) -> NDArray[Any]:
-    """A read-only 2-D view of the contiguous 1-D ``flat`` with ``steps`` elements
-    between rows and columns (numpy checks it stays inside ``flat``): what
-    ``as_strided`` makes, at a quarter of its overhead."""
-    view: NDArray[Any] = np.ndarray(
-        shape,
-        dtype=flat.dtype,
-        buffer=flat,
-        strides=(steps[0] * flat.itemsize, flat.itemsize * steps[1]),
-    )
-    view.flags.writeable = False
-    return view
-
-
-def _take_rows(
-    samples: NDArray[Any], start: NDArray[np.intp], count: int, cols: NDArray[np.intp]
-) -> NDArray[Any]:
-    """``samples[start[i] + w, cols[i]]`` for ``w < count``: (count, len(cols)), from a
-    strided view (no index array per sample). ``samples`` C-contiguous (m, n); every
-    ``0 <= start <= m - count``."""
-    m, n = samples.shape
-    flat = samples.ravel()
-    view = _strided(flat, (count, (m - count + 1) * n), (n, 1))
-    # (The fancy index lays its result out line by line: made row-major again, every
-    # operation on the window after it runs several times faster.)
-    return np.ascontiguousarray(view[:, start * n + cols])
-
-
-def _argmax_near(
-    samples: NDArray[np.int16], centre: NDArray[np.float64], tol: NDArray[np.float64]
-) -> NDArray[np.intp]:
-    """Per line (column of ``samples``, C-contiguous: 8-bit values or their negations),
-    the index k of the largest step ``samples[k + 1] - samples[k]`` (at k + 0.5) within
-    ``tol`` of ``centre`` (the first, on a tie): only that window's steps are taken,
-    not the whole line's."""
-    m, n = samples.shape[0] - 1, samples.shape[1]  # m steps a line
-    k0 = _clip(np.ceil(centre - tol - 0.5).astype(np.intp), 0, m - 1)
-    k1 = _clip(np.floor(centre + tol - 0.5).astype(np.intp), 0, m - 1)
-    span = max(int(np.max(k1 - k0)) + 1, 1) if len(k0) else 1
-    # Each line's window starts at k0, or earlier where it would run past the end.
-    start = np.minimum(k0, m - span)
-    window = _take_rows(samples, start, span + 1, np.arange(n))
-    vals = np.subtract(window[1:], window[:-1])
-    pos = np.arange(span, dtype=np.int16)[:, None]
-    if span <= _KEY_SPAN:
-        # Each step with its position in the low bits, 63 for the first: the largest
-        # key is the first largest step, by a maximum down the rows (numpy's argmax
-        # down the first axis runs one line at a time, several times slower).
-        np.left_shift(vals, _KEY_BITS, out=vals)
-        vals |= (_KEY_SPAN - 1) - pos
-    np.putmask(vals, pos > (k1 - start)[None, :], _INT16_MIN)
-    if bool((start < k0).any()):
-        np.putmask(vals, pos < (k0 - start)[None, :], _INT16_MIN)
-    if span <= _KEY_SPAN:
-        first = (_KEY_SPAN - 1) - (vals.max(axis=0) & (_KEY_SPAN - 1))
-    else:
-        first = np.argmax(vals, axis=0)
-    return np.asarray(start + first, dtype=np.intp)
-
-
-#: Bits of a step's key (:func:`_argmax_near`) that hold its position in the window.
-_KEY_BITS = 6
-_KEY_SPAN = 1 << _KEY_BITS
-
-
-def _inner_mean(
-    prof: NDArray[np.int16], mid: NDArray[np.float64], half: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Mean of each line's samples k with ``|k - mid| < half`` (a difference of two
-    cumulative sums; integer sums, exact)."""
-    m, n = prof.shape
-    if n == 0:
-        return np.zeros(0)
-    k0 = _clip(np.floor(mid - half).astype(np.intp) + 1, 0, m)
-    k1 = _clip(np.ceil(mid + half).astype(np.intp), 0, m)  # one past the last
-    # Only the rows some line sums (the strip's middle, not its margins) are accumulated.
-    r0 = int(k0.min())
-    r1 = max(int(k1.max()), r0)
-    # Row by row: numpy's accumulation down the first axis runs one line at a time,
-    # several times slower.
-    cs = np.empty((r1 - r0 + 1, n), dtype=np.int32)
-    cs[0] = 0
-    for k in range(r1 - r0):
-        np.add(cs[k], prof[r0 + k], out=cs[k + 1])
-    rr = np.arange(n)
-    total = cs[k1 - r0, rr] - cs[k0 - r0, rr]
-    return np.asarray(total / np.maximum(k1 - k0, 1), dtype=np.float64)
-
-
-def _pooled_tilt(
-    near: NDArray[np.int16],
-    far: NDArray[np.int16],
-    level: NDArray[np.float64],
+@kernel
+def _scan_kernel(
+    image: NDArray[np.uint8],
+    columns: bool,
+    lines: NDArray[np.intp],
+    top: NDArray[np.intp],
+    yc: NDArray[np.float64],
+    half: NDArray[np.float64],
     bounds: NDArray[np.intp],
-    spans: list[int],
-) -> NDArray[np.float64]:
-    """Per line, its strip's relative change of the background level per sample along
-    the lines: the difference of the means of the lines' first samples ``near`` and
-    last samples ``far`` over the level and the ``spans`` (samples, one per strip)
-    between them; 0 for a strip of fewer than 8 lines.
+    reaches: NDArray[np.intp],
+    margin: int,
+    window: int,
+    max_window: int,
+    levels: bool,
+) -> tuple[
+    NDArray[np.int16],
+    NDArray[np.intp],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+]:
+    """The edges of every strip's scan lines (pixel columns ``columns`` or rows
+    ``lines``, strip s the lines ``bounds[s]:bounds[s + 1]``, of ``2 reaches[s] + 1``
+    samples from ``top`` on; the strip's centre ``yc`` and half width ``half`` along
+    each): the samples, each side's steepest step, moment or area position, contrast and
+    ramp width, and the plateau levels at each edge (``levels``, else zeros).
 
-    The strip's lines' values are pooled by the mean of their middle half (lines whose
-    ends cross clutter are outliers), shrunk toward 0 by ``max(0, 1 - (se / t)^2)``
-    (``se``: that mean's standard error, Tukey and McLaughlin's, from the winsorized
-    variance). Without it, the tilt's noise in even light (a short wide hub: few lines
-    of many samples each) moved the hub angle by 0.14 of its sd RMS; shrunk, about a
-    third of that noise's variance is left, while a tilt of 4 standard errors keeps
-    94 % of its correction."""
-    diff = far.sum(axis=0, dtype=np.int32) - near.sum(axis=0, dtype=np.int32)
-    rel = diff / (near.shape[0] * np.maximum(level, 1.0))
-    out = np.zeros(len(rel))
-    for (a, b), span in zip(itertools.pairwise(bounds), spans, strict=True):
-        k = int(b - a)
-        if k < 8:
-            continue
-        lo, hi = k // 4, (3 * k) // 4
-        q = np.partition(rel[a:b], (lo, hi))
-        t = float(q[lo : hi + 1].sum()) / (hi + 1 - lo)
-        w = np.minimum(np.maximum(q, q[lo]), q[hi])  # winsorized
-        w -= float(w.sum()) / k
-        se = math.sqrt(float(w @ w) / k) / ((hi + 1 - lo) / k * math.sqrt(k))
-        if t != 0.0:
-            out[a:b] = t * max(0.0, 1.0 - (se / t) ** 2) / span
+    The samples are held (line, position along the line) as int16: 8-bit values and
+    their negations. Both sides at once: the falling edge of a profile between levels lo
+    and hi is the rising edge of the negated profile between -hi and -lo, so lines n..
+    hold -prof and every step below sees rising edges only. ``max_window`` samples of
+    padding before and after (never counted as samples) step down into the line and out
+    of it, so that only steps between a line's own samples can be positive in an edge
+    window. Lines of a narrower strip carry samples past their end (clipped to the
+    image) that nothing reads but the steepest-step search, as before.
+
+    Returns (padded samples, peak step, position, contrast (summed rising steps), ramp
+    width, lo, hi) per side-line (lines 0..n-1 the rising sides, n.. the falling)."""
+    n = len(lines)
+    nb = len(reaches)
+    m = 2 * reaches.max() + 1 if nb else 1
+    pad = max_window
+    extent = image.shape[0] if columns else image.shape[1]
+    buf = np.empty((2 * n, m + 2 * pad), dtype=np.int16)
+    for j in range(2 * n):
+        for k in range(pad):
+            buf[j, k] = _PAD_LEVEL
+            buf[j, pad + m + k] = -_PAD_LEVEL
+    for i in range(n):
+        ln = lines[i]
+        for k in range(m):
+            r = min(top[i] + k, extent - 1)
+            v = np.int16(image[r, ln] if columns else image[ln, r])
+            buf[i, pad + k] = v
+            buf[n + i, pad + k] = -v
+    # Per line: its strip's sample count (its far background's end).
+    ends = np.empty(n, dtype=np.intp)
+    for s in range(nb):
+        for i in range(bounds[s], bounds[s + 1]):
+            ends[i] = 2 * reaches[s] + 1
+    level_in = np.empty(n)
+    level_out = np.empty(n)
+    diff_ends = np.empty(n)  # far sum - near sum (the pooled tilt's input)
+    vals = np.empty(2 * margin)
+    for i in range(n):
+        mid = yc[i] - top[i]
+        # Mean of the samples k with |k - mid| < half / 2 (integer sums, exact).
+        h = 0.5 * half[i]
+        k0 = min(max(int(np.floor(mid - h)) + 1, 0), m)
+        k1 = min(max(int(np.ceil(mid + h)), 0), m)
+        tot = 0
+        for k in range(min(k0, k1), max(k0, k1)):
+            tot += buf[i, pad + k]
+        if k1 < k0:
+            tot = -tot
+        level_in[i] = tot / max(k1 - k0, 1)
+        # Background: the median of the first and the last ``margin`` samples.
+        near = 0
+        far = 0
+        for k in range(margin):
+            va = buf[i, pad + k]
+            vb = buf[i, pad + ends[i] - margin + k]
+            vals[k] = va
+            vals[margin + k] = vb
+            near += va
+            far += vb
+        diff_ends[i] = far - near
+        level_out[i] = _median_even(vals)
+    peak = np.empty(2 * n, dtype=np.intp)
+    ramp = np.empty(2 * n)
+    steps = m - 1  # a line's steps
+    for j in range(2 * n):
+        i = j % n
+        mid = yc[i] - top[i]
+        centre = mid - half[i] if j < n else mid + half[i]
+        tol = max(0.35 * half[i], 2.5)
+        # The steepest rising step within tol of the expected edge (the first, on a
+        # tie); step k, between samples k and k + 1, sits at k + 0.5.
+        k0 = min(max(int(np.ceil(centre - tol - 0.5)), 0), steps - 1)
+        k1 = min(max(int(np.floor(centre + tol - 0.5)), 0), steps - 1)
+        best = -32768
+        at = k0
+        for k in range(k0, k1 + 1):
+            d = buf[j, pad + k + 1] - buf[j, pad + k]
+            if d > best:
+                best = d
+                at = k
+        peak[j] = at
+        # Ramp width (px) = contrast / steepest step: motion blur widens it; the
+        # moment window grows with it so a blurred edge is still located at its centre.
+        contrast = max(level_in[i] - level_out[i], 1e-6)
+        steepest = np.int16(buf[j, pad + at + 1] - buf[j, pad + at])
+        ramp[j] = contrast / max(np.float64(steepest), 1e-6)
+    lo2 = np.zeros(2 * n)
+    hi2 = np.zeros(2 * n)
+    if levels:
+        # The plateau levels smoothed along each strip (not across strips).
+        lo = _smoothed(level_out, bounds)
+        hi = _smoothed(level_in, bounds)
+        # The levels at each edge, not at the line's middle (see _pooled_tilt).
+        rel = np.empty(n)
+        for i in range(n):
+            rel[i] = diff_ends[i] / (margin * max(level_out[i], 1.0))
+        for s in range(nb):
+            a, b = bounds[s], bounds[s + 1]
+            t = _pooled_tilt(rel[a:b]) / (2 * reaches[s] + 1 - margin)
+            for i in range(a, b):
+                tilt = t * half[i]
+                fa, fb = 1.0 - tilt, 1.0 + tilt  # the light at the edges
+                lo2[i] = lo[i] * fa
+                hi2[i] = hi[i] * fa
+                lo2[n + i] = -(hi[i] * fb)
+                hi2[n + i] = -(lo[i] * fb)
+    cen = np.empty(2 * n)
+    step = np.empty(2 * n)
+    for j in range(2 * n):
+        p = peak[j]
+        w = int(min(max(np.ceil(0.5 * ramp[j] + 0.5), window), max_window))
+        cen[j], step[j] = _window_edge(buf[j], pad, m, p, w, levels, lo2[j], hi2[j])
+    return buf, peak, cen, step, ramp, lo2, hi2
+
+
+@kernel
+def _window_edge(
+    row: NDArray[np.int16],
+    pad: int,
+    m: int,
+    p: int,
+    w: int,
+    levels: bool,
+    lo: float,
+    hi: float,
+) -> tuple[float, float]:
+    """The rising edge about the steepest step ``p`` of one side-line's padded samples
+    ``row`` (``m`` samples after ``pad`` of padding), from the samples p - w .. p + w + 1, and the
+    sum of its rising steps (its contrast):
+
+    - the first moment of the rising steps within ``w`` of the peak (as
+      :func:`edge_moment`);
+    - with plateau levels ``lo`` and ``hi`` (``levels``): the position of the sharp step
+      with the same area between them (exact for any blur once the window spans the
+      ramp; less noisy than the moment of the steps), where the window stays on the line
+      and the levels differ by more than 1 DN. Integer sums: exact in any order."""
+    total = 0
+    moment = 0
+    total_v = 0
+    for o in range(-w, w + 1):
+        d = max(row[pad + p + o + 1] - row[pad + p + o], 0)  # (no branch to mispredict)
+        total += d
+        moment += o * d
+        total_v += row[pad + p + o]
+    total_v += row[pad + p + w + 1]
+    step = np.float64(total)
+    centre = p + 0.5 + moment / step
+    if levels and p >= w and p + w + 1 < m and hi - lo > 1.0:
+        frac = (total_v - (2 * w + 2) * lo) / max(hi - lo, 1e-6)
+        area = np.float64(p + w + 1) + 0.5 - frac
+        if np.isfinite(area):
+            return area, step
+    return centre, step
+
+
+@kernel
+def _smoothed(x: NDArray[np.float64], bounds: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Each strip's (``bounds``) series smoothed along it by a running median of 9 lines
+    (fewer on a short strip: the largest odd size it holds, none below 3 lines), its ends
+    held: ``scipy.ndimage.median_filter`` with ``mode="nearest"`` (an odd window's median
+    is one of its values: exact). No NaN."""
+    out = np.empty(len(x))
+    win = np.empty(9)
+    for s in range(len(bounds) - 1):
+        a, b = bounds[s], bounds[s + 1]
+        size = min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1
+        h = size // 2
+        for i in range(a, b):
+            for o in range(size):
+                win[o] = x[min(max(i - h + o, a), b - 1)]
+            if size == 9:
+                out[i] = _median9(win)
+            else:
+                _sort(win[:size])
+                out[i] = win[h]
     return out
 
 
-def _smoothed_levels(
-    level_out: NDArray[np.float64], level_in: NDArray[np.float64], bounds: NDArray[np.intp]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Each strip's (``bounds``) two plateau levels smoothed along it by a running median
-    of 9 lines (fewer on a short strip), its ends held (``scipy.ndimage.median_filter``
-    with ``mode="nearest"``, to the bit). All strips' series of one size at once, each
-    padded with its end values apart from the next; size 9 by :func:`_running_median9`."""
-    n = len(level_out)
-    both = np.concatenate([level_out, level_in])
-    out = np.empty(2 * n)
-    segs = [(a + off, b + off) for off in (0, n) for a, b in itertools.pairwise(bounds)]
-    sizes = [min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1 for a, b in segs]
-    for k in sorted(set(sizes)):
-        h = k // 2
-        mine = [(int(a), int(b)) for (a, b), size in zip(segs, sizes, strict=True) if size == k]
-        idx = np.concatenate([_clip(np.arange(a - h, b + h), a, b - 1) for a, b in mine])
-        if k == 9:
-            med = _running_median9(both[idx])
-        else:
-            from scipy.ndimage import median_filter
-
-            med = median_filter(both[idx], size=k, mode="nearest")[h:]
-        j = 0
-        for a, b in mine:
-            out[a:b] = med[j : j + b - a]
-            j += b - a + 2 * h
-    return out[:n], out[n:]
+@kernel
+def _median9(p: NDArray[np.float64]) -> float:
+    """The median of the 9 values ``p`` (no NaN), exactly and without branches: the
+    median of the three sorted triples' largest minimum, median of medians and smallest
+    maximum (a min/max network, checked on every 0-1 input)."""
+    lo, hi = min(p[0], p[1]), max(p[0], p[1])
+    a0, a1, a2 = min(lo, p[2]), min(hi, max(lo, p[2])), max(hi, p[2])
+    lo, hi = min(p[3], p[4]), max(p[3], p[4])
+    b0, b1, b2 = min(lo, p[5]), min(hi, max(lo, p[5])), max(hi, p[5])
+    lo, hi = min(p[6], p[7]), max(p[6], p[7])
+    c0, c1, c2 = min(lo, p[8]), min(hi, max(lo, p[8])), max(hi, p[8])
+    first = max(max(a0, b0), c0)
+    last = min(min(a2, b2), c2)
+    lo, hi = min(a1, b1), max(a1, b1)
+    mid = min(hi, max(lo, c1))
+    lo, hi = min(first, mid), max(first, mid)
+    return min(hi, max(lo, last))
 
 
-def _running_median9(p: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The medians of the ``len(p) - 8`` windows of 9 consecutive values of ``p`` (no
-    NaN), exactly: the median of the three sorted triples' largest minimum, median of
-    medians and smallest maximum (a min/max network, checked on every 0-1 input). The
-    triples are sorted once for all windows (consecutive windows share them): 18
-    vector operations instead of a heap per window."""
-    a, b, c = p[:-2], p[1:-1], p[2:]
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    mn, t = np.minimum(lo, c), np.maximum(lo, c)
-    md, mx = np.minimum(hi, t), np.maximum(hi, t)
-    m = len(p) - 8
-    first = np.maximum(np.maximum(mn[:m], mn[3 : 3 + m]), mn[6 : 6 + m])
-    last = np.minimum(np.minimum(mx[:m], mx[3 : 3 + m]), mx[6 : 6 + m])
-    mid = _median3(md[:m], md[3 : 3 + m], md[6 : 6 + m])
-    return _median3(first, mid, last)
+@kernel
+def _median_even(vals: NDArray[np.float64]) -> float:
+    """``np.median`` of an even number of values (no NaN): the mean of the two middle
+    ones, found by their ranks (counts without branches, ties ranked by position: a
+    sort's data-dependent branches cost more on ten values)."""
+    n = len(vals)
+    lo = 0.0
+    hi = 0.0
+    for p in range(n):
+        v = vals[p]
+        rank = 0
+        for q in range(n):
+            rank += (vals[q] < v) | ((vals[q] == v) & (q < p))
+        lo = v if rank == n // 2 - 1 else lo
+        hi = v if rank == n // 2 else hi
+    return 0.5 * (lo + hi)
 
 
-def _median3(
-    a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Element-wise median of three arrays (no NaN)."""
-    return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
+@kernel
+def _sort(a: NDArray[np.float64]) -> None:
+    """Sort ``a`` (no NaN) in place: Shell's sort with Ciura's gaps (a few to a few
+    hundred values: ``np.sort`` compiles several times slower)."""
+    n = len(a)
+    for gap in (701, 301, 132, 57, 23, 10, 4, 1):
+        for k in range(gap, n):
+            v = a[k]
+            q = k
+            while q >= gap and a[q - gap] > v:
+                a[q] = a[q - gap]
+                q -= gap
+            a[q] = v
 
 
-def _median(values: NDArray[np.int16]) -> NDArray[np.float64]:
-    """Column medians (as ``np.median``: the mean of the two middle values of an even
-    column)."""
-    # A sort of each short column (numpy's vectorised small sort) costs half a partition
-    # by two middle indices.
-    m = values.shape[0]
-    part = np.sort(values, axis=0)
-    return np.asarray(0.5 * (part[(m - 1) // 2].astype(np.float64) + part[m // 2]))
+@kernel
+def _pooled_tilt(rel: NDArray[np.float64]) -> float:
+    """A strip's relative change of the background level along its lines (per line, over
+    the span between the ends' centres, which the caller divides by), from each line's
+    ``rel``; 0 for a strip of fewer than 8 lines.
 
+    The uneven light tilts both plateaus, and levels taken at a line's middle put both
+    edges of a strip off the same way, toward the light (by about the mid-level's change
+    over a half width over the edge's slope: 0.004 px on a 21 px beam and 0.01 px on a
+    42 px hub with the light 15 % brighter across a 2048 px frame, which turned the hub
+    angle +0.5 of its sd on average). The light scales what it falls on, so both levels
+    tilt by the same fraction per sample: the background's, from the lines' two ends
+    (44-64 samples apart), pooled over the strip's lines (the light is smooth; one line's
+    tilt is mostly noise). The strip's own inner part is a short base (5-10 samples): its
+    tilt, tried, was noisier, and moved the other renderer's even-light frames more.
 
-def _window_edges(
-    padded: NDArray[np.int16],
-    pad: int,
-    peak: NDArray[np.intp],
-    half: NDArray[np.intp],
-    lo: NDArray[np.float64] | None,
-    hi: NDArray[np.float64] | None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Rising edges about the steepest step ``peak`` (step k between samples k and k+1,
-    at k + 0.5) of each line (column) of the profiles ``padded[pad:-pad]``, from one
-    window of samples peak-half .. peak+half+1 (``half`` at most ``pad``):
-
-    - the first moment of the positive steps within ``half`` of the peak, and their sum
-      (the edge's contrast), as :func:`vision.sampling.edge_moment`;
-    - with plateau levels ``lo`` and ``hi``: the position of the sharp step with the
-      same area between them (exact for any blur once the window spans the ramp; less
-      noisy than the moment of the steps), NaN where the window leaves the line.
-
-    The lines are taken in two passes, windows up to 3 and wider: one array spans the
-    widest window, and a few lines across blur or clutter would otherwise make every
-    line's window 18 samples instead of 8."""
-    every = np.arange(len(peak))
-    wide = np.flatnonzero(half > 3)
-    if len(wide) in (0, len(half)):
-        return _window_edges_group(padded, pad, every, peak, half, lo, hi)
-    # Every line with its window cut to 3, then the few wide ones again (each line's
-    # own window is exact in either pass: see _window_edges_group).
-    out = _window_edges_group(padded, pad, every, peak, np.minimum(half, 3), lo, hi)
-    part = _window_edges_group(
-        padded,
-        pad,
-        wide,
-        peak[wide],
-        half[wide],
-        None if lo is None else lo[wide],
-        None if hi is None else hi[wide],
-    )
-    for o, p in zip(out, part, strict=True):
-        o[wide] = p
-    return out
-
-
-def _window_edges_group(
-    padded: NDArray[np.int16],
-    pad: int,
-    cols: NDArray[np.intp],
-    peak: NDArray[np.intp],
-    half: NDArray[np.intp],
-    lo: NDArray[np.float64] | None,
-    hi: NDArray[np.float64] | None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`_window_edges` for the lines ``cols``."""
-    n = len(peak)
-    m = padded.shape[0] - 2 * pad
-    hmax = int(np.max(half)) if n else 0
-    # The window's samples, offsets -hmax .. hmax + 1 about the peak. Past the line's
-    # ends they are the padding, which steps down into the line and out of it, so that
-    # only steps between the line's own samples can be positive.
-    v = _take_rows(padded, peak + (pad - hmax), 2 * hmax + 2, cols)
-    # Sums over the window (integers, exact in any order): each line's window
-    # (|offset| <= half) is the widest one less the rings |offset| = r > half, a few
-    # operations on one row each, not a mask over every line's widest window.
-    d = np.subtract(v[1:], v[:-1])  # the steps, offsets -hmax .. hmax
-    np.maximum(d, 0, out=d)  # only rising steps count
-    total = d.sum(axis=0, dtype=np.int32)
-    moment = (d * np.arange(-hmax, hmax + 1, dtype=np.int16)[:, None]).sum(axis=0, dtype=np.int32)
-    total_v = v.sum(axis=0, dtype=np.int32)
-    for r in range(int(np.min(half)) + 1 if n else 1, hmax + 1):
-        out = half < r
-        below, above = d[hmax - r], d[hmax + r]
-        total -= np.where(out, below + above, 0).astype(np.int32)
-        moment -= np.where(out, r * (above - below), 0).astype(np.int32)
-        total_v -= np.where(out, v[hmax - r] + v[hmax + r + 1], 0).astype(np.int32)
-    step = total.astype(np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        centre = peak + 0.5 + moment / step
-    if lo is None or hi is None:
-        return centre, step, np.full(n, np.nan)
-    # The area of the window's 2 half + 2 samples above lo, in units of hi - lo; NaN
-    # where the window leaves the line.
-    ok = (peak >= half) & (peak + half + 1 < m) & (hi - lo > 1.0)
-    frac = (total_v - (2 * half + 2) * lo) / np.maximum(hi - lo, 1e-6)
-    area = (peak + half + 1).astype(np.float64) + 0.5 - frac
-    return centre, step, np.where(ok, area, np.nan)
+    The lines' values are pooled by the mean of their middle half (lines whose ends cross
+    clutter are outliers), shrunk toward 0 by ``max(0, 1 - (se / t)^2)`` (``se``: that
+    mean's standard error, Tukey and McLaughlin's, from the winsorized variance). Without
+    it, the tilt's noise in even light (a short wide hub: few lines of many samples each)
+    moved the hub angle by 0.14 of its sd RMS; shrunk, about a third of that noise's
+    variance is left, while a tilt of 4 standard errors keeps 94 % of its correction."""
+    k = len(rel)
+    if k < 8:
+        return 0.0
+    q = rel.copy()
+    _sort(q)
+    lo, hi = k // 4, (3 * k) // 4
+    t = 0.0
+    for i in range(lo, hi + 1):
+        t += q[i]
+    t /= hi + 1 - lo
+    w = np.empty(k)
+    wsum = 0.0
+    for i in range(k):
+        w[i] = min(max(q[i], q[lo]), q[hi])  # winsorized
+        wsum += w[i]
+    wmean = wsum / k
+    ww = 0.0
+    for i in range(k):
+        d = w[i] - wmean
+        ww += d * d
+    se = math.sqrt(ww / k) / ((hi + 1 - lo) / k * math.sqrt(k))
+    if t == 0.0:
+        return 0.0
+    return t * max(0.0, 1.0 - (se / t) ** 2)
 
 
 def erf_edge(
@@ -613,101 +641,20 @@ def erf_edge(
     its median (one lens, one edge direction); then only ``c`` is fitted on every line:
     the maximum-likelihood position under white noise, which weights each sample by the
     local slope of the edge instead of equally (the area estimator's noise grows with
-    its window). ``blocks``: the lines are that many consecutive (near) equal blocks,
-    each a different edge with its own median width."""
+    its window). ``blocks``: the lines are that many consecutive (near) equal blocks
+    (``np.array_split``'s), each a different edge with its own median width."""
+    n = len(start)
+    size, extra = divmod(n, blocks)
+    bounds = np.cumsum([0] + [size + 1] * extra + [size] * (blocks - extra))
     return _erf_fit(
-        np.asarray(prof).T, start, lo, hi, sigma0, 1.0 if rising else -1.0, blocks=blocks
+        np.ascontiguousarray(prof, dtype=np.float64),
+        np.asarray(start, dtype=np.float64),
+        np.asarray(lo, dtype=np.float64),
+        np.asarray(hi, dtype=np.float64),
+        np.asarray(sigma0, dtype=np.float64),
+        1.0 if rising else -1.0,
+        bounds.astype(np.intp),
     )
-
-
-def _erf_fit(
-    prof: NDArray[np.floating] | NDArray[np.integer],
-    start: NDArray[np.float64],
-    lo: NDArray[np.float64],
-    hi: NDArray[np.float64],
-    sigma0: NDArray[np.float64],
-    sign: float,
-    blocks: int | Sequence[NDArray[np.intp]] = 1,
-) -> NDArray[np.float64]:
-    """:func:`erf_edge` on profiles (samples, lines); ``blocks`` may also be the lines of
-    each block.
-
-    Two stages. The width: joint (c, s) Gauss-Newton steps on a subsample of each block's
-    lines (at most ``_WIDTH_LINES``), whose median width is the block's ``s`` (a symmetric
-    edge's position and width are orthogonal parameters, so the position hardly depends
-    on the width's small error). The position: ``c``-only Gauss-Newton steps on every
-    line with that width."""
-    amp = np.maximum(hi - lo, 1e-6)
-    ok = np.isfinite(start)
-    c = np.where(ok, start, 0.0)
-    s = _clip(np.where(np.isfinite(sigma0), sigma0, 0.8), 0.4, 3.0)
-    # One window of samples about the start (it is within a sample of the edge): +-3
-    # samples hold all but ~1e-3 of a sharp edge's information (the weight of a sample
-    # u widths out is exp(-u^2)); blurred edges (a block's median width above 1.2 px) get +-4.
-    groups = np.array_split(np.arange(len(s)), blocks) if isinstance(blocks, int) else blocks
-    half = 4 if any(len(x) and median(s[x]) > 1.2 for x in _subsample(groups, ok)) else 3
-    # A start whose window leaves the profile is no edge of this strip (the area
-    # estimate runs off on lines that cross something else): NaN, like no start. Those
-    # lines sit at the profile's middle, so every window is whole.
-    m = np.shape(prof)[0]
-    if m < 2 * half + 1:  # no window fits
-        return np.full(len(c), np.nan)
-    centre: NDArray[np.float64] = np.asarray(np.round(c), dtype=np.float64)
-    ok &= (centre >= half) & (centre <= m - 1 - half)
-    centre = np.asarray(np.where(ok, centre, float(m // 2)), dtype=np.float64)
-    c = np.where(ok, c, centre)
-    # (Every window is whole: a line without a start has the profile's middle.)
-    samples = _take_rows(
-        np.ascontiguousarray(prof), centre.astype(np.intp) - half, 2 * half + 1, np.arange(len(c))
-    )
-    # The model is evaluated in single precision (twice the numpy throughput; numpy's
-    # double exp is even scalar code on CPUs without AVX-512), about the window's
-    # centre: the residuals are then good to 1e-5 DN and a step to 1e-7 px, far below
-    # the noise. The positions themselves, and the 2x2 solves, stay double.
-    fit = _ErfWindow(
-        (samples - lo).astype(np.float32),
-        np.arange(-half, half + 1, dtype=np.float32)[:, None],
-        amp,
-        sign,
-    )
-    # Width, per block, from a subsample of its lines (all blocks' subsamples fitted
-    # together).
-    subs = _subsample(groups, ok)
-    sub = np.concatenate(subs)
-    if len(sub):
-        part = fit.select(sub)
-        cs, ss, cen = c[sub], s[sub], centre[sub]
-        for _ in range(2):
-            dc, ds = part.step(cs, cen, ss, joint=True)
-            assert ds is not None  # the joint step's width update
-            cs = cs + np.where(np.isfinite(dc), _clip(dc, -1.0, 1.0), 0.0)
-            ss = _clip(ss + np.where(np.isfinite(ds), _clip(ds, -0.5, 0.5), 0.0), 0.3, 4.0)
-        i = 0
-        for blk, lines in zip(groups, subs, strict=True):
-            if len(lines):
-                s[blk] = median(ss[i : i + len(lines)])
-            i += len(lines)
-    # Position: two steps on every line, a third where the second still moved the edge
-    # by more than _CONVERGED_PX (the steps shrink about tenfold each: p99 9e-2, 8e-3,
-    # 1e-3 px on nominal frames, so a line skipped keeps ~1e-4 px of its last step).
-    for _ in range(2):
-        dc, _ds = fit.step(c, centre, s, joint=False)
-        c = c + np.where(np.isfinite(dc), _clip(dc, -1.0, 1.0), 0.0)
-    moving = np.flatnonzero(np.abs(dc) > _CONVERGED_PX)
-    if len(moving):
-        dc, _ds = fit.select(moving).step(c[moving], centre[moving], s[moving], joint=False)
-        c[moving] += np.where(np.isfinite(dc), _clip(dc, -1.0, 1.0), 0.0)
-    bad = ~ok | (np.abs(c - start) > 2.0) | (hi - lo <= 1.0)
-    return np.where(bad, np.nan, c)
-
-
-def _subsample(groups: Sequence[NDArray[np.intp]], ok: NDArray[np.bool_]) -> list[NDArray[np.intp]]:
-    """Of each block's lines with a start, about ``_WIDTH_LINES`` evenly spread."""
-    out = []
-    for blk in groups:
-        lines = blk[ok[blk]]
-        out.append(lines[:: max(1, len(lines) // _WIDTH_LINES)])
-    return out
 
 
 #: Lines per block whose joint fit sets the block's edge width (its median).
@@ -716,98 +663,260 @@ _WIDTH_LINES = 96
 _CONVERGED_PX = 1e-3
 
 
-@dataclass
-class _ErfWindow:
-    """The samples of :func:`_erf_fit`'s windows (minus ``lo``, (window, lines), float32),
-    the window offsets and the per-line amplitude."""
+def _erf_fit(
+    prof: NDArray[Any],
+    start: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    sigma0: NDArray[np.float64],
+    sign: float,
+    bounds: NDArray[np.intp],
+) -> NDArray[np.float64]:
+    """:func:`erf_edge` on profiles (lines, samples), the lines' blocks
+    ``bounds[b] : bounds[b + 1]``.
 
-    v: NDArray[np.float32]
-    offs: NDArray[np.float32]
-    amp: NDArray[np.float64]
-    sign: float
+    Two stages. The width: joint (c, s) Gauss-Newton steps on a subsample of each block's
+    lines (at most ``_WIDTH_LINES``), whose median width is the block's ``s`` (a symmetric
+    edge's position and width are orthogonal parameters, so the position hardly depends
+    on the width's small error). The position: ``c``-only Gauss-Newton steps on every
+    line with that width. (Three kernels: only the one that reads the profiles is
+    compiled for each of their types.)"""
+    m = prof.shape[1]
+    half, ok, c, s, centre = _erf_start(start, sigma0, bounds, m)
+    if m < 2 * half + 1:  # no window fits
+        return np.full(len(start), np.nan)
+    v = _erf_samples(prof, centre, lo, half)
+    return _erf_solve(v, ok, c, s, centre, start, hi - lo, sign, bounds)
 
-    def __post_init__(self) -> None:
-        self.amp32 = self.amp.astype(np.float32)
 
-    def select(self, lines: NDArray[np.intp]) -> _ErfWindow:
-        # Row-major again (the fancy index lays the copy out line by line, and every
-        # step's operations on it would run several times slower).
-        v = np.ascontiguousarray(self.v[:, lines])
-        return _ErfWindow(v, self.offs, self.amp[lines], self.sign)
+@kernel
+def _erf_start(
+    start: NDArray[np.float64],
+    sigma0: NDArray[np.float64],
+    bounds: NDArray[np.intp],
+    m: int,
+) -> tuple[int, NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_erf_fit`'s window: its half width, and per line whether it has a start
+    whose window fits the ``m`` samples, the start (else the window's centre), the
+    initial width and the window's centre (the profile's middle where none fits)."""
+    n = len(start)
+    nb = len(bounds) - 1
+    ok = np.empty(n, dtype=np.bool_)
+    c = np.empty(n)
+    s = np.empty(n)
+    for i in range(n):
+        ok[i] = np.isfinite(start[i])
+        c[i] = start[i] if ok[i] else 0.0
+        s0 = sigma0[i] if np.isfinite(sigma0[i]) else 0.8
+        s[i] = min(max(s0, 0.4), 3.0)
+    # One window of samples about the start (it is within a sample of the edge): +-3
+    # samples hold all but ~1e-3 of a sharp edge's information (the weight of a sample
+    # u widths out is exp(-u^2)); blurred edges (a block's median width above 1.2 px)
+    # get +-4.
+    half = 3
+    sub = _subsample(bounds, ok)
+    for b in range(nb):
+        if sub[b + 1] > sub[b] and _median_of(s, sub[nb + 1 + sub[b] : nb + 1 + sub[b + 1]]) > 1.2:
+            half = 4
+    # A start whose window leaves the profile is no edge of this strip (the area
+    # estimate runs off on lines that cross something else): NaN, like no start. Those
+    # lines sit at the profile's middle, so every window is whole.
+    centre = np.empty(n)
+    for i in range(n):
+        ci = np.rint(c[i])
+        ok[i] = ok[i] and ci >= half and ci <= m - 1 - half
+        centre[i] = ci if ok[i] else np.float64(m // 2)
+        if not ok[i]:
+            c[i] = centre[i]
+    return half, ok, c, s, centre
 
-    def step(
-        self,
-        c: NDArray[np.float64],
-        centre: NDArray[np.float64],
-        s: NDArray[np.float64],
-        joint: bool,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
-        """One Gauss-Newton step: (dc, ds) jointly, or (dc, None) at fixed width."""
-        sign = self.sign
-        u = self.offs - (c - centre).astype(np.float32)
-        u *= (sign / s).astype(np.float32)
-        g = u * u
-        g *= np.float32(-0.5)
-        np.exp(g, out=g)
-        r = _ndtr_from_weight(u, g)
-        r *= self.amp32
-        np.subtract(self.v, r, out=r)
-        k = (-sign / _ROOT2PI) * self.amp / s
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if not joint:
-                return _colsum(g * r) / _colsum(g * g) / k, None
-            gu = g * u
-            s0, s1, s2 = (_colsum(g * g), _colsum(g * gu), _colsum(gu * gu))
-            t0, t1 = _colsum(g * r), _colsum(gu * r)
-            kd = k * (s0 * s2 - s1 * s1)
-            return (s2 * t0 - s1 * t1) / kd, sign * (s0 * t1 - s1 * t0) / kd
+
+@kernel
+def _erf_samples(
+    prof: NDArray[Any], centre: NDArray[np.float64], lo: NDArray[np.float64], half: int
+) -> NDArray[np.float32]:
+    """Each line's window of samples about ``centre``, less ``lo``, (line, sample), in
+    single precision: the model is evaluated in single precision about the window's
+    centre (the residuals are then good to 1e-5 DN and a step to 1e-7 px, far below the
+    noise); the positions themselves, and the 2x2 solves, stay double."""
+    n = len(centre)
+    width = 2 * half + 1
+    v = np.empty((n, width), dtype=np.float32)
+    for i in range(n):
+        first = int(centre[i]) - half
+        for w in range(width):
+            v[i, w] = np.float32(np.float64(prof[i, first + w]) - lo[i])
+    return v
+
+
+@kernel
+def _erf_solve(
+    v: NDArray[np.float32],
+    ok: NDArray[np.bool_],
+    c: NDArray[np.float64],
+    s: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    start: NDArray[np.float64],
+    span: NDArray[np.float64],
+    sign: float,
+    bounds: NDArray[np.intp],
+) -> NDArray[np.float64]:
+    """:func:`_erf_fit`'s two stages on the windows ``v`` (``span``: hi - lo). ``s`` is
+    overwritten by the blocks' widths."""
+    n = len(c)
+    nb = len(bounds) - 1
+    half = v.shape[1] // 2
+    offs = np.empty(2 * half + 1, dtype=np.float32)
+    for w in range(2 * half + 1):
+        offs[w] = np.float32(w - half)
+    # Width, per block, from a subsample of its lines.
+    sub = _subsample(bounds, ok)
+    ss = np.empty(len(sub) - (nb + 1))
+    for q in range(len(ss)):
+        i = sub[nb + 1 + q]
+        amp = span[i] if not span[i] < 1e-6 else 1e-6  # (NaN stays NaN)
+        cs, si = c[i], s[i]
+        for _ in range(2):
+            _dc, dc, ds = _erf_step(v[i], offs, amp, sign, cs, centre[i], si)
+            cs += min(max(dc, -1.0), 1.0) if np.isfinite(dc) else 0.0
+            si = min(max(si + (min(max(ds, -0.5), 0.5) if np.isfinite(ds) else 0.0), 0.3), 4.0)
+        ss[q] = si
+    for b in range(nb):
+        if sub[b + 1] > sub[b]:
+            med = _median_of(ss[sub[b] : sub[b + 1]], np.arange(sub[b + 1] - sub[b]))
+            for i in range(bounds[b], bounds[b + 1]):
+                s[i] = med
+    # Position: two steps on every line, a third where the second still moved the edge
+    # by more than _CONVERGED_PX (the steps shrink about tenfold each: p99 9e-2, 8e-3,
+    # 1e-3 px on nominal frames, so a line skipped keeps ~1e-4 px of its last step).
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = np.nan
+        if not ok[i] or span[i] <= 1.0:
+            continue
+        amp = span[i] if not span[i] < 1e-6 else 1e-6  # (NaN stays NaN)
+        ci = c[i]
+        for it in range(3):
+            dc, _dc, _ds = _erf_step(v[i], offs, amp, sign, ci, centre[i], s[i])
+            ci += min(max(dc, -1.0), 1.0) if np.isfinite(dc) else 0.0
+            if it == 1 and not abs(dc) > _CONVERGED_PX:
+                break
+        if abs(ci - start[i]) <= 2.0:
+            out[i] = ci
+    return out
+
+
+@kernel
+def _subsample(bounds: NDArray[np.intp], ok: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """Of each block's lines with ``ok``, about ``_WIDTH_LINES`` evenly spread: the
+    counts' offsets (``nb + 1``) followed by the chosen lines, block by block."""
+    nb = len(bounds) - 1
+    out = np.empty(nb + 1 + len(ok), dtype=np.intp)
+    q = nb + 1
+    out[0] = 0
+    for b in range(nb):
+        cnt = 0
+        for i in range(bounds[b], bounds[b + 1]):
+            cnt += ok[i]
+        stride = max(1, cnt // _WIDTH_LINES)
+        k = 0
+        for i in range(bounds[b], bounds[b + 1]):
+            if ok[i]:
+                if k % stride == 0:
+                    out[q] = i
+                    q += 1
+                k += 1
+        out[b + 1] = q - (nb + 1)
+    return out[:q]
+
+
+@kernel
+def _median_of(x: NDArray[np.float64], idx: NDArray[np.intp]) -> float:
+    """``np.median(x[idx])`` (``idx`` not empty; no NaN)."""
+    k = len(idx)
+    a = np.empty(k)
+    for q in range(k):
+        a[q] = x[idx[q]]
+    _sort(a)
+    if k % 2:
+        return a[k // 2]
+    return 0.5 * (a[k // 2 - 1] + a[k // 2])
 
 
 _ROOT2PI = math.sqrt(2 * math.pi)
 
 
-def _colsum(x: NDArray[np.float32]) -> NDArray[np.float64]:
-    """Column sums of a (window, lines) single-precision array, as doubles."""
-    return np.asarray(x.sum(axis=0), dtype=np.float64)
+@kernel
+def _erf_step(
+    v: NDArray[np.float32],
+    offs: NDArray[np.float32],
+    amp: float,
+    sign: float,
+    c: float,
+    centre: float,
+    s: float,
+) -> tuple[float, float, float]:
+    """One Gauss-Newton step of a line's fit: dc at fixed width, and (dc, ds) jointly.
+    The model in single precision: ``u = (offs - (c - centre)) sign / s``, the weight
+    ``g = exp(-u^2 / 2)``, the residual ``v - amp Phi(u)``; the window's sums in single
+    precision in window order (as numpy's column sums of a (window, lines) array), the
+    2x2 solve in double."""
+    du = np.float32(c - centre)
+    sc = np.float32(sign / s)
+    amp32 = np.float32(amp)
+    s0 = np.float32(0.0)
+    s1 = np.float32(0.0)
+    s2 = np.float32(0.0)
+    t0 = np.float32(0.0)
+    t1 = np.float32(0.0)
+    for w in range(len(v)):
+        u = (offs[w] - du) * sc
+        g = np.exp((u * u) * np.float32(-0.5))
+        r = v[w] - _ndtr32(u, g) * amp32
+        gu = g * u
+        s0 += g * g
+        s1 += g * gu
+        s2 += gu * gu
+        t0 += g * r
+        t1 += gu * r
+    k = (-sign / _ROOT2PI) * amp / s
+    f0, f1, f2 = np.float64(s0), np.float64(s1), np.float64(s2)
+    r0, r1 = np.float64(t0), np.float64(t1)
+    kd = k * (f0 * f2 - f1 * f1)
+    return r0 / f0 / k, (f2 * r0 - f1 * r1) / kd, sign * (f0 * r1 - f1 * r0) / kd
 
 
 #: Abramowitz & Stegun 7.1.26: erfc(x) = (a1 t + .. + a5 t^5) exp(-x^2), t = 1 / (1 + p x),
-#: x >= 0, absolute error below 1.5e-7.
-_AS_P = 0.3275911 / math.sqrt(2.0)  # for x = |u| / sqrt(2)
+#: x >= 0, absolute error below 1.5e-7; in single precision, the coefficients halved
+#: (exactly) and p for x = |u| / sqrt(2).
 _AS_A = (0.254829592, -0.284496736, 1.421413741, -1.453152027, 1.061405429)
-_AS_A32 = tuple(np.float32(a) for a in _AS_A)
-_AS_P32 = np.float32(_AS_P)
-_AS_A32_HALF = tuple(a * np.float32(0.5) for a in _AS_A32)
-_SIGN = np.int32(np.iinfo(np.int32).min)  # a float32's sign bit
-_MAGNITUDE = np.int32(np.iinfo(np.int32).max)  # the rest
+_AS_P32 = np.float32(0.3275911 / math.sqrt(2.0))
+_A1, _A2, _A3, _A4, _A5 = (np.float32(a) * np.float32(0.5) for a in _AS_A)
 
 
-def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray[np.float32]:
+@kernel
+def _ndtr32(u: np.float32, g: np.float32) -> np.float32:
     """The normal CDF Phi(u) given ``g = exp(-u^2 / 2)`` (which the fit computes anyway),
-    to 3e-7 in single precision: a few vector multiplies instead of
-    ``scipy.special.ndtr``, a third of the time of a fit step. In a residual that is
-    6e-5 DN on a 200 DN edge, against 2-10 DN of noise."""
-    a1, a2, a3, a4, a5 = _AS_A32_HALF
-    half = np.float32(0.5)
-    # In place: at the fit's array sizes each operation's cost is mostly its call and
-    # its fresh array.
-    t = np.abs(u)
-    t *= _AS_P32
-    t += np.float32(1.0)
-    np.reciprocal(t, out=t)
-    p = t * a5
-    for a in (a4, a3, a2, a1):
-        p += a
-        p *= t
-    # The coefficients halved: the polynomial's value is exactly half (every partial
-    # value is far from underflow where g > 0), so the product with g is Phi(-|u|)
-    # to the bit wherever it is not a subnormal, and those vanish from 1/2 - Phi(-|u|).
-    p *= g  # Phi(-|u|)
-    np.subtract(half, p, out=p)
-    # Phi(u) - 1/2 = copysign(p, u), by the bits: np.copysign is scalar code, three
-    # times the cost of the two masks (the same result for every input).
-    bits = p.view(np.int32)
-    bits &= _MAGNITUDE
-    bits |= u.view(np.int32) & _SIGN
-    p += half
-    return p
+    to 3e-7 in single precision: a polynomial instead of an erf. In a residual that is
+    6e-5 DN on a 200 DN edge, against 2-10 DN of noise.
+
+    The coefficients are halved: the polynomial's value is exactly half (every partial
+    value is far from underflow where g > 0), so the product with g is Phi(-|u|) to the
+    bit wherever it is not a subnormal, and those vanish from 1/2 - Phi(-|u|)."""
+    t = np.float32(1.0) / (abs(u) * _AS_P32 + np.float32(1.0))
+    p = t * _A5
+    p = (p + _A4) * t
+    p = (p + _A3) * t
+    p = (p + _A2) * t
+    p = (p + _A1) * t
+    p = np.float32(0.5) - p * g  # 1/2 - Phi(-|u|) = |Phi(u) - 1/2|
+    return np.float32(math.copysign(p, u)) + np.float32(0.5)
+
+
+@kernel
+def _ndtr_from_weight(u: NDArray[np.float32], g: NDArray[np.float32]) -> NDArray[np.float32]:
+    """:func:`_ndtr32` of arrays."""
+    out = np.empty(u.shape, dtype=np.float32)
+    for i in range(u.size):
+        out.flat[i] = _ndtr32(u.flat[i], g.flat[i])
+    return out

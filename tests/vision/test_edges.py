@@ -10,9 +10,9 @@ from scipy.ndimage import median_filter
 from scipy.special import ndtr
 
 from vision.edges import (
+    _median9,
     _ndtr_from_weight,
-    _running_median9,
-    _smoothed_levels,
+    _smoothed,
     erf_edge,
     strip_edges,
     strip_edges_many,
@@ -108,7 +108,7 @@ def test_the_running_median_of_nine_is_exact() -> None:
     # A min/max network: right on every 0-1 input means right on every input.
     for bits in itertools.product((0.0, 1.0), repeat=9):
         x = np.array(bits)
-        assert _running_median9(x)[0] == np.median(x)
+        assert _median9(x) == np.median(x)
 
 
 def test_smoothed_levels_are_each_strips_own_median_filter() -> None:
@@ -119,7 +119,7 @@ def test_smoothed_levels_are_each_strips_own_median_filter() -> None:
     bounds = np.cumsum([0, *sizes])
     out_levels = rng.integers(80, 90, bounds[-1]) * 0.5
     in_levels = rng.integers(400, 420, bounds[-1]) * 0.5
-    lo, hi = _smoothed_levels(out_levels, in_levels, bounds)
+    lo, hi = _smoothed(out_levels, bounds), _smoothed(in_levels, bounds)
     for a, b in itertools.pairwise(bounds):
         k = min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1
         for got, x in ((lo, out_levels), (hi, in_levels)):
