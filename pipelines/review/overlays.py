@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -290,8 +291,8 @@ def stream_processed(
             for column in (times, images, encodings, overlays):
                 column.clear()
 
-    for frame in iter_frames(log_path):
-        hit = by_seq.get(frame.sequence)
+    for sequence, frame in _measured_in_log_order(log_path, processed.frames, made):
+        hit = by_seq.get(sequence)
         if hit is None:
             continue
         i, measured = hit
@@ -299,8 +300,9 @@ def stream_processed(
         shape = None
         if np.isfinite(t) and sim.time_s[0] <= t <= sim.time_s[-1]:
             shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
-        shown = made.pop(frame.sequence, None)
+        shown = made.pop(sequence, None)
         if shown is None:
+            assert frame is not None  # read from the log wherever no preview was made
             if composer is None:
                 shown = displayed_frame(frame.data, frame.encoding, frame_reduction)
             else:
@@ -317,3 +319,27 @@ def stream_processed(
             send()
     send()
     viewer.log_events(processed.events, t0_ns=t0_ns)
+
+
+def _measured_in_log_order(
+    log_path: Path, frames: list[MeasuredFrame], made: dict[int, tuple[bytes, str, float]]
+) -> Iterator[tuple[int, Any]]:
+    """(sequence, the logged frame or None) of the log's frames in its order, the log
+    read only where it is needed: not at all while ``made`` holds a preview of each
+    measured frame (they were measured from this log, in its order), from the start
+    again at the first without one (the previews thread stops at a frame and makes no
+    later one), then every frame not given yet, as the log has them. A log whose frames
+    repeat a sequence number is read whole, as before."""
+    seqs = [f.sequence for f in frames]
+    given: set[int] = set()
+    if len(set(seqs)) == len(seqs):
+        for seq in seqs:
+            if seq not in made:
+                break
+            given.add(seq)
+            yield seq, None
+        else:
+            return
+    for f in iter_frames(log_path):
+        if f.sequence not in given:
+            yield f.sequence, f
