@@ -25,7 +25,13 @@ from pipelines.errors import BeambenchError
 from pipelines.process.alignment import Alignment, estimate_offset
 from pipelines.process.damping_fit import check_run_supports_fit, fit_damping_attrs
 from pipelines.process.failures import FailureSummary, summarise_failures
-from pipelines.process.frames import MeasuredFrame, as_arrays, measure_frames
+from pipelines.process.frames import (
+    MeasuredFrame,
+    StartedWorkers,
+    as_arrays,
+    measure_frames,
+    start_workers,
+)
 from pipelines.process.free_decay import find_free_decay, simulate_release
 from pipelines.process.hub import hub_attrs, measured_hub, offset_warning
 from pipelines.process.model_error import (
@@ -325,6 +331,32 @@ def process_run(
     The frames that were not measured are counted by reason, one warning line each, and
     a warning names the main reason and the option that would help when fewer than half
     were measured (``Processed.failures``; none measured is the caller's error)."""
+    # the frame workers start now: each imports numpy, OpenCV and vision (a second or
+    # more) while this process reads the log, which then takes no wall time of its own
+    started = start_workers(workers)
+    try:
+        return _process_run(
+            log_path, rig, calibration_path, model, sim_tol, workers, damping_law,
+            max_tip_uncertainty_m, fit_damping, on_measured, started,
+        )  # fmt: skip
+    finally:
+        if started is not None:
+            started.close()  # taken by measure_frames, unless the run stopped before
+
+
+def _process_run(
+    log_path: Path,
+    rig: Rig | None,
+    calibration_path: Path | None,
+    model: str,
+    sim_tol: float | None,
+    workers: int | None,
+    damping_law: str | None,
+    max_tip_uncertainty_m: float,
+    fit_damping: bool,
+    on_measured: Callable[[list[MeasuredFrame]], None] | None,
+    started: StartedWorkers | None,
+) -> Processed:
     prior_tol = PRIOR_SIM_TOL if sim_tol is None else sim_tol
     timings = Timings()
     t0 = time.perf_counter()
@@ -373,6 +405,7 @@ def process_run(
                 progress=bar.update,
                 max_tip_uncertainty_m=max_tip_uncertainty_m,
                 on_measured=on_measured,
+                started=started,
             )
         cols = as_arrays(frames, calibration)
         failures = _report_failures(log_path, frames)
