@@ -200,6 +200,7 @@ def run(quick: bool) -> int:
             ("  during the frames: strain reconstruction", t.strain_s, True),
             ("  during the frames: free-decay search", t.damping_s, True),
             (f"  during the frames: simulate ({ds.attrs['sim_model']})", t.simulate_s, True),
+            ("    the three, CPU s of their thread", t.model_cpu_s, True),
             ("wait for the simulation after the frames", t.model_wait_s, False),
             ("simulate again at the frames' tolerance", t.resimulate_s, False),
             ("align clocks", t.align_s, False),
