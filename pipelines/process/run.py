@@ -337,7 +337,8 @@ def process_run(
     were measured (``Processed.failures``; none measured is the caller's error)."""
     # the frame workers start now: each imports numpy, OpenCV and vision (a second or
     # more) while this process reads the log, which then takes no wall time of its own
-    started = start_workers(workers)
+    # (a path that is no file is refused at once, with none started)
+    started = start_workers(workers) if Path(log_path).is_file() else None
     try:
         return _process_run(
             log_path, rig, calibration_path, model, sim_tol, workers, damping_law,
