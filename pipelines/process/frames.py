@@ -15,6 +15,7 @@ main process polls the workers while it waits and kills what is left when it giv
 from __future__ import annotations
 
 import collections
+import functools
 import itertools
 import logging
 import math
@@ -51,6 +52,8 @@ class WorkerError(BeambenchError):
 
 
 _reader: RegionReader | None = None
+_reader_token: str | None = None
+_tokens = itertools.count()
 
 
 @dataclass(frozen=True)
@@ -60,14 +63,12 @@ class MeasuredFrame:
     measurement: FrameMeasurement
 
 
-def _init_worker(
-    calibration: Calibration,
-    stations_m: tuple[float, ...],
-    method: str,
-    max_tip_uncertainty_m: float | None = None,
-    decode_parts: bool = True,
-) -> None:
-    global _reader
+# what a worker's reader is built from: (calibration, stations, method, tip uncertainty
+# limit, decode in parts), with a token naming one call of measure_frames
+_Setup = tuple[str, tuple[Calibration, tuple[float, ...], str, float | None, bool]]
+
+
+def _init_worker() -> None:
     # One thread per worker: the workers already use every core.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
@@ -76,8 +77,18 @@ def _init_worker(
         cv2.setNumThreads(1)
     except ImportError:  # pragma: no cover - opencv is a dependency
         pass
-    measurer = measurer_for(calibration, stations_m, method, max_tip_uncertainty_m)
-    _reader = RegionReader(measurer, parts=decode_parts)
+
+
+def _reader_for(setup: _Setup) -> RegionReader:
+    """This worker's reader for ``setup``, built at its first chunk (a worker may be
+    started before the calibration is known: :class:`StartedWorkers`)."""
+    global _reader, _reader_token
+    token, (calibration, stations_m, method, limit, decode_parts) = setup
+    if _reader is None or _reader_token != token:
+        measurer = measurer_for(calibration, stations_m, method, limit)
+        _reader = RegionReader(measurer, parts=decode_parts)
+        _reader_token = token
+    return _reader
 
 
 def measurer_for(
@@ -96,9 +107,64 @@ def measurer_for(
     return Measurer(calibration, **kwargs)
 
 
-def _measure_chunk(items: list[tuple[int, int, bytes]]) -> list[MeasuredFrame]:
-    assert _reader is not None
-    return [MeasuredFrame(t_ns, seq, _reader.measure(data)) for t_ns, seq, data in items]
+def _measure_chunk(setup: _Setup, items: list[tuple[int, int, bytes]]) -> list[MeasuredFrame]:
+    reader = _reader_for(setup)
+    return [MeasuredFrame(t_ns, seq, reader.measure(data)) for t_ns, seq, data in items]
+
+
+def _ready() -> int:
+    """A task for a worker started ahead: it has imported this module (and vision,
+    numpy, OpenCV with it) by the time it runs this."""
+    return os.getpid()
+
+
+class StartedWorkers:
+    """Frame-measuring worker processes started before the frames are measured
+    (:func:`start_workers`): a spawned worker spends its first second or more importing
+    numpy, OpenCV and vision, which then overlaps the reading of the log. Hand it to
+    :func:`measure_frames` (which then owns it), or :meth:`close` it."""
+
+    def __init__(self, pool: ProcessPoolExecutor, n_workers: int) -> None:
+        self.pool: ProcessPoolExecutor | None = pool
+        self.n_workers = n_workers
+
+    def take(self) -> ProcessPoolExecutor | None:
+        pool, self.pool = self.pool, None
+        return pool
+
+    def close(self) -> None:
+        """Stop the workers if :func:`measure_frames` did not take them (safe to repeat)."""
+        if (pool := self.take()) is not None:
+            _abandon(pool)
+
+
+def _new_pool(n_workers: int) -> ProcessPoolExecutor:
+    # Spawned, not forked: a fork copies the threads of rerun and the log reader
+    # half-way through whatever they hold, and the children can hang.
+    return ProcessPoolExecutor(
+        max_workers=n_workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_init_worker,
+    )
+
+
+def start_workers(workers: int | None = None) -> StartedWorkers | None:
+    """``workers`` (default: one a core) frame-measuring processes, started now; None
+    for one worker (the frames are then measured in this process) or when they cannot
+    be started (:func:`measure_frames` then tries again, and says why it cannot)."""
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    if n_workers <= 1 or _cannot_spawn() is not None:
+        return None
+    pool = None
+    try:
+        pool = _new_pool(n_workers)
+        for _ in range(n_workers):  # a spawned pool starts a worker per task waiting
+            pool.submit(_ready)
+    except OSError:
+        if pool is not None:
+            _abandon(pool)
+        return None
+    return StartedWorkers(pool, n_workers)
 
 
 def measure_frames(
@@ -112,6 +178,7 @@ def measure_frames(
     max_tip_uncertainty_m: float | None = None,
     decode_parts: bool = True,
     on_measured: Callable[[list[MeasuredFrame]], None] | None = None,
+    started: StartedWorkers | None = None,
 ) -> list[MeasuredFrame]:
     """Measure ``frames`` (objects with ``t_ns``, ``sequence``, ``data``) in order;
     ``max_tip_uncertainty_m`` (default: vision's) refuses frames whose stated tip lateral
@@ -122,7 +189,34 @@ def measure_frames(
 
     ``workers`` defaults to the number of cores; 1 measures in this process. Workers are
     spawned, so a script calling this needs the usual ``if __name__ == "__main__":`` guard.
+    ``started``: workers started ahead (:func:`start_workers`, then ``workers`` is
+    theirs), taken over and stopped with the rest.
     """
+    pool = started.take() if started is not None else None
+    if started is not None:
+        workers = started.n_workers
+    try:
+        return _measure_frames(
+            frames, calibration, stations_m, method, workers, progress,
+            max_tip_uncertainty_m, decode_parts, on_measured, pool,
+        )  # fmt: skip
+    finally:
+        if pool is not None:
+            _abandon(pool)  # stopped already, unless no frame needed it (a no-op then)
+
+
+def _measure_frames(
+    frames: Iterable[Any],
+    calibration: Calibration,
+    stations_m: tuple[float, ...],
+    method: str,
+    workers: int | None,
+    progress: Callable[[int], None] | None,
+    max_tip_uncertainty_m: float | None,
+    decode_parts: bool,
+    on_measured: Callable[[list[MeasuredFrame]], None] | None,
+    started_pool: ProcessPoolExecutor | None,
+) -> list[MeasuredFrame]:
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     limit = max_tip_uncertainty_m
     done = _progress(progress, on_measured)
@@ -145,17 +239,16 @@ def measure_frames(
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
         return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
-    # Spawned, not forked: a fork copies the threads of rerun and the log reader
-    # half-way through whatever they hold, and the children can hang.
-    pool = None
+    setup: _Setup = (
+        f"{os.getpid()}-{next(_tokens)}",
+        (calibration, stations_m, method, limit, decode_parts),
+    )
+    measure_chunk = functools.partial(_measure_chunk, setup)
+    pool = started_pool
     try:
-        pool = ProcessPoolExecutor(
-            max_workers=n_workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_init_worker,
-            initargs=(calibration, stations_m, method, limit, decode_parts),
-        )
-        head = pool.submit(_measure_chunk, first)
+        if pool is None:
+            pool = _new_pool(n_workers)
+        head = pool.submit(measure_chunk, first)
     except OSError as exc:
         # no worker could be started (e.g. a user who cannot execute the interpreter's
         # real path, so neither the workers nor their resource tracker start): measure
@@ -175,7 +268,9 @@ def measure_frames(
     unanswered: list[list[tuple[int, int, bytes]]] = [first]
     ok = False
     try:
-        for chunk in _pooled(pool, head, chunks, in_flight=4 * n_workers, sent=unanswered):
+        for chunk in _pooled(
+            pool, measure_chunk, head, chunks, in_flight=4 * n_workers, sent=unanswered
+        ):
             out.extend(chunk)
             unanswered.clear()  # answered: a later death is an error, not a fallback
             if done:
@@ -252,19 +347,20 @@ def _chunks(items: Iterator[tuple[int, int, bytes]]) -> Iterator[list[tuple[int,
 
 def _pooled(
     pool: ProcessPoolExecutor,
+    measure_chunk: Callable[[list[tuple[int, int, bytes]]], list[MeasuredFrame]],
     head: Future[list[MeasuredFrame]],
     chunks: Iterator[list[tuple[int, int, bytes]]],
     *,
     in_flight: int,
     sent: list[list[tuple[int, int, bytes]]],
 ) -> Iterator[list[MeasuredFrame]]:
-    """Results of ``_measure_chunk`` in order, ``head`` first, at most ``in_flight``
+    """Results of ``measure_chunk`` in order, ``head`` first, at most ``in_flight``
     chunks queued (the frames' bytes stay bounded), each wait watched by :func:`_wait`."""
     pending: collections.deque[Future[list[MeasuredFrame]]] = collections.deque([head])
     try:
         for chunk in chunks:
             sent.append(chunk)  # the caller clears it at each result
-            pending.append(pool.submit(_measure_chunk, chunk))
+            pending.append(pool.submit(measure_chunk, chunk))
             if len(pending) >= in_flight:
                 yield _wait(pool, pending.popleft())
         while pending:

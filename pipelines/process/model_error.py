@@ -178,12 +178,17 @@ def drive_sd_of(sim: SimResult) -> float:
 
 def auto_estimate(sim: SimResult) -> float:
     """``auto``'s relative tip error estimate (NaN for another model), plus the change
-    between the last two simulated periods when the run was simulated to its periodic
-    steady state only (:mod:`pipelines.process.steady_state`)."""
+    between the last two simulated periods and the interpolation's estimated error in
+    the last when the run was simulated to its periodic steady state only
+    (:mod:`pipelines.process.steady_state`)."""
     value = sim.settings.get("auto_error_estimate", math.nan)
     steady = sim.settings.get("steady_state", {})
     try:
-        return float(value) + float(steady.get("cycle_change_rel", 0.0))
+        return (
+            float(value)
+            + float(steady.get("cycle_change_rel", 0.0))
+            + float(steady.get("interpolation_rel", 0.0))
+        )
     except (AttributeError, TypeError, ValueError):
         return math.nan
 

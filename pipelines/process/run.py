@@ -25,7 +25,13 @@ from pipelines.errors import BeambenchError
 from pipelines.process.alignment import Alignment, estimate_offset
 from pipelines.process.damping_fit import check_run_supports_fit, fit_damping_attrs
 from pipelines.process.failures import FailureSummary, summarise_failures
-from pipelines.process.frames import MeasuredFrame, as_arrays, measure_frames
+from pipelines.process.frames import (
+    MeasuredFrame,
+    StartedWorkers,
+    as_arrays,
+    measure_frames,
+    start_workers,
+)
 from pipelines.process.free_decay import find_free_decay, simulate_release
 from pipelines.process.hub import hub_attrs, measured_hub, offset_warning
 from pipelines.process.model_error import (
@@ -79,6 +85,8 @@ class Timings:
     simulate_s: float = 0.0
     damping_fit_s: float = 0.0
     model_wait_s: float = 0.0
+    # the CPU time of the model side's thread (strains, free decay, simulation)
+    model_cpu_s: float = 0.0
     # simulating again after the frames, when they asked for a tighter tolerance
     resimulate_s: float = 0.0
     write_s: float = 0.0
@@ -241,9 +249,11 @@ def _model_side(
     model: str,
     sim_tol: float,
     damping_law: str | None = None,
-) -> tuple[StrainShape, np.ndarray, Any, SimResult, tuple[float, float, float]]:
+) -> tuple[StrainShape, np.ndarray, Any, SimResult, tuple[float, float, float, float]]:
     """What a run gives without its frames: the strain-based tip, the free decay (if the
-    run holds one) and the simulation. Returns them with the wall time of each step."""
+    run holds one) and the simulation. Returns them with the wall time of each step and
+    the CPU time of the whole."""
+    c0 = time.thread_time()
     t0 = time.perf_counter()
     shape = strain_shape_for(rig)
     tip_strain = shape.tip_lateral_m(strain)
@@ -262,7 +272,7 @@ def _model_side(
     else:
         sim = simulate_measured(rig, t_s, rocker_angle_rad, model, sim_tol, damping_law)
     t3 = time.perf_counter()
-    return shape, tip_strain, decay, sim, (t1 - t0, t2 - t1, t3 - t2)
+    return shape, tip_strain, decay, sim, (t1 - t0, t2 - t1, t3 - t2, time.thread_time() - c0)
 
 
 def _model_error_below_image(
@@ -325,6 +335,33 @@ def process_run(
     The frames that were not measured are counted by reason, one warning line each, and
     a warning names the main reason and the option that would help when fewer than half
     were measured (``Processed.failures``; none measured is the caller's error)."""
+    # the frame workers start now: each imports numpy, OpenCV and vision (a second or
+    # more) while this process reads the log, which then takes no wall time of its own
+    # (a path that is no file is refused at once, with none started)
+    started = start_workers(workers) if Path(log_path).is_file() else None
+    try:
+        return _process_run(
+            log_path, rig, calibration_path, model, sim_tol, workers, damping_law,
+            max_tip_uncertainty_m, fit_damping, on_measured, started,
+        )  # fmt: skip
+    finally:
+        if started is not None:
+            started.close()  # taken by measure_frames, unless the run stopped before
+
+
+def _process_run(
+    log_path: Path,
+    rig: Rig | None,
+    calibration_path: Path | None,
+    model: str,
+    sim_tol: float | None,
+    workers: int | None,
+    damping_law: str | None,
+    max_tip_uncertainty_m: float,
+    fit_damping: bool,
+    on_measured: Callable[[list[MeasuredFrame]], None] | None,
+    started: StartedWorkers | None,
+) -> Processed:
     prior_tol = PRIOR_SIM_TOL if sim_tol is None else sim_tol
     timings = Timings()
     t0 = time.perf_counter()
@@ -373,6 +410,7 @@ def process_run(
                 progress=bar.update,
                 max_tip_uncertainty_m=max_tip_uncertainty_m,
                 on_measured=on_measured,
+                started=started,
             )
         cols = as_arrays(frames, calibration)
         failures = _report_failures(log_path, frames)
@@ -383,7 +421,7 @@ def process_run(
         t0 = time.perf_counter()
         shape, tip_strain, decay, sim, side_timings = model_side.result()
         timings.model_wait_s = time.perf_counter() - t0
-    timings.strain_s, timings.damping_s, timings.simulate_s = side_timings
+    timings.strain_s, timings.damping_s, timings.simulate_s, timings.model_cpu_s = side_timings
     t0 = time.perf_counter()
     sim, tol_choice = _model_error_below_image(
         sim, frames, rig, t_s, samples.rocker_angle_rad, model, sim_tol, decay, damping_law

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,9 +65,43 @@ def magnified_difference(
     along, across = along[inside], across[inside]
     # a cubic through the stations: a straight line between them would itself differ from
     # the simulated shape by tens of micrometres, magnified like a real difference
-    sim_across = CubicSpline(sim_along, lat)(along)
+    sim_across = not_a_knot_cubic(sim_along, lat, along)
     shown = sim_across + gain * (across - sim_across)
     return np.asarray(clamp_m[None, :] + np.outer(along, axis) + np.outer(shown, normal), float)
+
+
+def not_a_knot_cubic(x: FloatArray, y: FloatArray, at: FloatArray) -> FloatArray:
+    """The not-a-knot cubic spline through (``x``, ``y``) (``x`` increasing) at ``at``:
+    scipy's ``CubicSpline(x, y)(at)`` to rounding, without its per-call checks (a
+    frame's overlay built one, 0.2 ms, on each of a bench minute's 900 frames, in the
+    serial step after them). Its slopes from the same equations (continuity of the
+    second derivative inside, of the third at the second and last-but-one points),
+    solved densely: the simulation's 21 stations."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    n = x.size
+    if n < 4:  # scipy's own cases: a line, a parabola through three points
+        return np.asarray(CubicSpline(x, y)(at), float)
+    h = np.diff(x)
+    d = np.diff(y) / h
+    a = np.zeros((n, n))
+    b = np.empty(n)
+    i = np.arange(1, n - 1)
+    a[i, i - 1] = h[1:]
+    a[i, i] = 2.0 * (h[:-1] + h[1:])
+    a[i, i + 1] = h[:-1]
+    b[1:-1] = 3.0 * (h[1:] * d[:-1] + h[:-1] * d[1:])
+    a[0, 0], a[0, 1] = h[1], h[0] + h[1]
+    b[0] = ((h[0] + 2.0 * (h[0] + h[1])) * h[1] * d[0] + h[0] ** 2 * d[1]) / (h[0] + h[1])
+    a[-1, -1], a[-1, -2] = h[-2], h[-1] + h[-2]
+    b[-1] = (h[-1] ** 2 * d[-2] + (2.0 * (h[-2] + h[-1]) + h[-1]) * h[-2] * d[-1]) / (h[-2] + h[-1])
+    m = np.linalg.solve(a, b)
+    q = np.asarray(at, float)
+    k = np.clip(np.searchsorted(x, q, side="right") - 1, 0, n - 2)
+    t = q - x[k]
+    hk = h[k]
+    c2 = (3.0 * d[k] - 2.0 * m[k] - m[k + 1]) / hk
+    c3 = (m[k] + m[k + 1] - 2.0 * d[k]) / hk**2
+    return np.asarray(y[k] + t * (m[k] + t * (c2 + t * c3)), float)
 
 
 def frame_overlay(
@@ -290,8 +325,8 @@ def stream_processed(
             for column in (times, images, encodings, overlays):
                 column.clear()
 
-    for frame in iter_frames(log_path):
-        hit = by_seq.get(frame.sequence)
+    for sequence, frame in _measured_in_log_order(log_path, processed.frames, made):
+        hit = by_seq.get(sequence)
         if hit is None:
             continue
         i, measured = hit
@@ -299,8 +334,9 @@ def stream_processed(
         shape = None
         if np.isfinite(t) and sim.time_s[0] <= t <= sim.time_s[-1]:
             shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
-        shown = made.pop(frame.sequence, None)
+        shown = made.pop(sequence, None)
         if shown is None:
+            assert frame is not None  # read from the log wherever no preview was made
             if composer is None:
                 shown = displayed_frame(frame.data, frame.encoding, frame_reduction)
             else:
@@ -317,3 +353,27 @@ def stream_processed(
             send()
     send()
     viewer.log_events(processed.events, t0_ns=t0_ns)
+
+
+def _measured_in_log_order(
+    log_path: Path, frames: list[MeasuredFrame], made: dict[int, tuple[bytes, str, float]]
+) -> Iterator[tuple[int, Any]]:
+    """(sequence, the logged frame or None) of the log's frames in its order, the log
+    read only where it is needed: not at all while ``made`` holds a preview of each
+    measured frame (they were measured from this log, in its order), from the start
+    again at the first without one (the previews thread stops at a frame and makes no
+    later one), then every frame not given yet, as the log has them. A log whose frames
+    repeat a sequence number is read whole, as before."""
+    seqs = [f.sequence for f in frames]
+    given: set[int] = set()
+    if len(set(seqs)) == len(seqs):
+        for seq in seqs:
+            if seq not in made:
+                break
+            given.add(seq)
+            yield seq, None
+        else:
+            return
+    for f in iter_frames(log_path):
+        if f.sequence not in given:
+            yield f.sequence, f

@@ -214,3 +214,33 @@ def test_the_interpreter_exits_after_a_worker_died() -> None:
     )
     assert proc.returncode == 0, proc.stderr
     assert "worker error: a frame-measuring worker process" in proc.stdout
+
+
+def test_workers_started_ahead_measure_the_frames_and_stop() -> None:
+    from pipelines.process.frames import start_workers
+
+    started = start_workers(2)
+    assert started is not None and started.pool is not None
+    ahead = set(started.pool.submit(os.getpid).result(timeout=120) for _ in range(4))
+    ahead |= {p.pid for p in frames_module._workers(started.pool)}
+    seen: set[int] = set()
+    out = measure_frames(
+        _frames(17),
+        CAL,
+        stations_m=(0.2,),
+        started=started,
+        on_measured=lambda fs: seen.update(_children("multiprocessing.spawn")),
+    )
+    assert [f.sequence for f in out] == list(range(17))
+    assert seen and seen <= ahead  # no other worker was started
+    assert started.pool is None  # taken over
+    started.close()  # a no-op now
+    assert _children("multiprocessing.spawn") == []
+    # started and never used (the run stopped before its frames): stopped by close()
+    unused = start_workers(2)
+    assert unused is not None
+    assert _children("multiprocessing.spawn")
+    unused.close()
+    unused.close()
+    assert _children("multiprocessing.spawn") == []
+    assert start_workers(1) is None  # one worker: the frames are measured here

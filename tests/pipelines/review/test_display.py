@@ -95,3 +95,20 @@ def test_the_magnified_difference_is_the_offset_times_the_gain_about_the_simulat
     # points beyond the simulated beam are dropped, not extrapolated
     beyond = np.vstack([measured, clamp + 0.9 * axis])
     assert magnified_difference(beyond, clamp, hub, sim, gain=20.0).shape == shown.shape
+
+
+def test_the_overlays_cubic_is_scipys_not_a_knot_spline() -> None:
+    from scipy.interpolate import CubicSpline
+
+    from pipelines.review.overlays import not_a_knot_cubic
+
+    rng = np.random.default_rng(19)
+    for n in (2, 3, 4, 5, 9, 21, 33):
+        for _ in range(20):
+            x = np.cumsum(rng.uniform(0.005, 0.2, n))  # uneven spacing
+            y = rng.normal(scale=0.01, size=n)
+            at = np.concatenate([rng.uniform(x[0], x[-1], 25), x])
+            want = CubicSpline(x, y)(at)
+            got = not_a_knot_cubic(x, y, at)
+            assert got.shape == want.shape
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.max(np.abs(y)))

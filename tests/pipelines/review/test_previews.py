@@ -115,3 +115,41 @@ def test_whole_previews_are_every_frame_reduced_whole(tmp_path: Path) -> None:
     with open_viewer("beambench-test", rrd_path=inline) as viewer:
         stream_processed(processed, log_path, viewer, frame_previews="region")  # says so
     assert "last whole frame" in repr(_data_rows(inline)[("/summary", "TextDocument:text")])
+
+
+class _Logged:
+    def __init__(self, sequence: int) -> None:
+        self.sequence = sequence
+
+
+def test_the_log_is_read_only_for_frames_without_a_preview(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pipelines.process.frames import MeasuredFrame
+    from pipelines.review import overlays
+
+    # the log's order (7 is in the log but was not measured)
+    log_seqs = [3, 4, 7, 5, 6, 9]
+    reads: list[Path] = []
+
+    def fake_iter_frames(path: Path) -> Any:
+        reads.append(path)
+        return iter([_Logged(s) for s in log_seqs])
+
+    monkeypatch.setattr(overlays, "iter_frames", fake_iter_frames)
+    log_path = tmp_path / "gone.mcap"  # never opened while every frame has its preview
+    measured = [MeasuredFrame(0, s, None) for s in (3, 4, 5, 6, 9)]  # type: ignore[arg-type]
+    shown = (b"", "jpeg", 0.5)
+    made = {s: shown for s in (3, 4, 5, 6, 9)}
+    got = list(overlays._measured_in_log_order(log_path, measured, made))
+    assert got == [(s, None) for s in (3, 4, 5, 6, 9)] and reads == []
+    # the previews stopped before 5: the log is read from there, in its order
+    made = {s: shown for s in (3, 4)}
+    got = list(overlays._measured_in_log_order(log_path, measured, made))
+    assert [s for s, _ in got] == [3, 4, 7, 5, 6, 9] and reads == [log_path]
+    assert [f is None for _, f in got] == [True, True, False, False, False, False]
+    # a repeated sequence number: the whole log, as it has them
+    reads.clear()
+    twice = [*measured, MeasuredFrame(1, 3, None)]  # type: ignore[arg-type]
+    got = list(overlays._measured_in_log_order(log_path, twice, made))
+    assert [s for s, _ in got] == log_seqs and reads == [log_path]
