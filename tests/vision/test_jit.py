@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import threading
+from pathlib import Path
 
 import numpy as np
+import pytest
 
-from vision.jit import kernel
+from vision.jit import KEEP_CACHES, _prune, cache_dir, kernel, sources_digest
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 @kernel
@@ -43,3 +50,68 @@ def test_kernel_runs_in_threads() -> None:
     for t in threads:
         t.join()
     assert out == [2500.0] * 4
+
+
+def _run(code: str, root: Path) -> str:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), str(REPO)]))
+    env.pop("NUMBA_CACHE_DIR", None)
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip()
+
+
+@pytest.mark.slow
+def test_a_changed_callee_compiles_its_callers_again(tmp_path: Path) -> None:
+    # numba keys a cached kernel on its own file: the caller's cache would keep the
+    # callee's old code. The package's digest in the cache directory's name prevents it.
+    pkg = tmp_path / "kpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    callee = "from vision.jit import kernel\n\n@kernel\ndef f(x):\n    return x + {}\n"
+    (pkg / "callee.py").write_text(callee.format("1.0"))
+    (pkg / "caller.py").write_text(
+        "from vision.jit import kernel\nfrom kpkg.callee import f\n\n"
+        "@kernel\ndef g(x):\n    return f(x) * 2.0\n"
+    )
+    code = "import kpkg.caller as c; print(c.g(1.0))"
+    assert _run(code, tmp_path) == "4.0"
+    assert _run(code, tmp_path) == "4.0"  # from the cache
+    caches = list((pkg / "__pycache__").glob("kernels-*"))
+    assert len(caches) == 1 and any(caches[0].rglob("*.nbi"))
+    (pkg / "callee.py").write_text(callee.format("2.0"))
+    assert _run(code, tmp_path) == "6.0"
+    assert len(list((pkg / "__pycache__").glob("kernels-*"))) == 2
+
+
+def test_digest_follows_every_source(tmp_path: Path) -> None:
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "b.py").write_text("y = 1\n")
+    first = sources_digest(tmp_path)
+    assert sources_digest(tmp_path) == first
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    assert sources_digest(tmp_path) != first
+    (tmp_path / "sub" / "b.py").write_text("y = 1\n")
+    assert sources_digest(tmp_path) == first
+    (tmp_path / "c.txt").write_text("not a source")
+    assert sources_digest(tmp_path) == first
+
+
+def test_old_caches_are_pruned(tmp_path: Path) -> None:
+    for i in range(KEEP_CACHES + 3):
+        d = tmp_path / f"kernels-{i:016x}"
+        d.mkdir()
+        os.utime(d, (1_000_000 + i, 1_000_000 + i))
+    (tmp_path / "other").mkdir()
+    cache_dir.cache_clear()
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "m.py").write_text("z = 0\n")
+    made = cache_dir(src)
+    assert made is not None and made.parent == src / "__pycache__"
+    _prune(tmp_path)
+    left = sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("kernels-"))
+    assert left == [f"kernels-{i:016x}" for i in range(3, KEEP_CACHES + 3)]
+    assert (tmp_path / "other").is_dir()
