@@ -38,6 +38,8 @@ F = TypeVar("F", bound=Callable[..., Any])
 #: and fro); older ones are removed when a new one is made.
 KEEP_CACHES = 4
 _PREFIX = "kernels-"
+# numba's settings (CACHE_DIR from $NUMBA_CACHE_DIR), set on the module at run time
+_config: Any = numba.config
 
 
 def kernel(fn: F) -> F:
@@ -46,14 +48,14 @@ def kernel(fn: F) -> F:
     module = sys.modules.get(fn.__module__)
     source = getattr(module, "__file__", None)
     where = cache_dir(Path(source).parent) if source else None
-    saved = numba.config.CACHE_DIR
+    saved = _config.CACHE_DIR
     try:
         if where is not None:
             # read by numba's cache locator when caching is enabled, i.e. inside njit()
-            numba.config.CACHE_DIR = str(where)
+            _config.CACHE_DIR = str(where)
         compiled = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
     finally:
-        numba.config.CACHE_DIR = saved
+        _config.CACHE_DIR = saved
     return cast(F, compiled)
 
 
@@ -76,8 +78,8 @@ def cache_dir(package: Path) -> Path | None:
     name = _PREFIX + sources_digest(package)
     user = os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache")
     places = [package / "__pycache__"]
-    if numba.config.CACHE_DIR:
-        places.append(Path(numba.config.CACHE_DIR) / "beambench")
+    if _config.CACHE_DIR:
+        places.append(Path(_config.CACHE_DIR) / "beambench")
     places.append(Path(user) / "beambench" / "numba")
     for place in places:
         target = place / name
