@@ -59,6 +59,15 @@ def kernel(fn: F) -> F:
     return cast(F, compiled)
 
 
+def cached(package: Path | None = None) -> bool:
+    """Whether any kernel of ``package`` (default: vision) is in its cache already: False
+    on a machine's first run and after its sources changed, when the first frame measured
+    compiles them (~25 CPU s for vision's); a caller starting several worker processes
+    measures its first frames itself then, so that they are compiled once, not in each."""
+    where = cache_dir(package if package is not None else Path(__file__).parent)
+    return where is not None and any(where.rglob("*.nbi"))
+
+
 def sources_digest(package: Path) -> str:
     """A digest of every ``.py`` file under ``package`` (names and contents) and of
     numba's version: it changes when any source a kernel may call changes."""

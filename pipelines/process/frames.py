@@ -34,6 +34,7 @@ import numpy as np
 from pipelines.errors import BeambenchError
 from vision import Calibration, FrameMeasurement, Measurer
 from vision.calibration_error import frame_calibration_sd
+from vision.jit import cached as kernels_cached
 from vision.regions import RegionReader
 
 log = logging.getLogger(__name__)
@@ -239,6 +240,15 @@ def _measure_frames(
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
         return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
+    here: list[MeasuredFrame] = []
+    if not kernels_cached():
+        # a fresh kernel cache (a first run, or vision changed): the first chunk measured
+        # here compiles the kernels once, and the workers load them, instead of each
+        # worker compiling them at once
+        here = _measure_here(first, calibration, stations_m, method, done, limit, decode_parts)
+        first = next(chunks, None)
+        if first is None:
+            return here
     setup: _Setup = (
         f"{os.getpid()}-{next(_tokens)}",
         (calibration, stations_m, method, limit, decode_parts),
@@ -260,7 +270,9 @@ def _measure_frames(
             exc,
         )
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
+        return here + _measure_here(
+            rest, calibration, stations_m, method, done, limit, decode_parts
+        )
     out: list[MeasuredFrame] = []
     # the chunks handed to the pool before its first result: measured here if no worker
     # ever answers (workers that die at start, e.g. a user who cannot execute the
@@ -282,13 +294,15 @@ def _measure_frames(
         _abandon(pool)
         log.warning("%s; measuring in this process instead", exc)
         rest = itertools.chain(*unanswered, itertools.chain.from_iterable(chunks))
-        return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
+        return here + _measure_here(
+            rest, calibration, stations_m, method, done, limit, decode_parts
+        )
     finally:
         if ok:
             pool.shutdown(wait=True)
         else:
             _abandon(pool)
-    return out
+    return here + out
 
 
 def _cannot_spawn() -> str | None:

@@ -244,3 +244,37 @@ def test_workers_started_ahead_measure_the_frames_and_stop() -> None:
     unused.close()
     assert _children("multiprocessing.spawn") == []
     assert start_workers(1) is None  # one worker: the frames are measured here
+
+
+def test_a_fresh_kernel_cache_measures_the_first_frames_here(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a cold cache: the first chunk is measured in this process (compiling the kernels
+    # once), the rest by the workers; the same frames, in order, handed on once each
+    monkeypatch.setattr(frames_module, "kernels_cached", lambda: False)
+    here: list[int] = []
+    real = frames_module._measure_here
+
+    def spy(items, *args, **kwargs):  # type: ignore[no-untyped-def]
+        got = real(items, *args, **kwargs)
+        here.extend(f.sequence for f in got)
+        return got
+
+    monkeypatch.setattr(frames_module, "_measure_here", spy)
+    handed: list[int] = []
+    out = measure_frames(
+        _frames(13),
+        CAL,
+        stations_m=(0.2,),
+        workers=2,
+        on_measured=lambda fs: handed.extend(f.sequence for f in fs),
+    )
+    assert here == list(range(frames_module.CHUNK_FRAMES))
+    assert [f.sequence for f in out] == handed == list(range(13))
+    # a run of one chunk never starts the pool
+    assert [f.sequence for f in measure_frames(_frames(3), CAL, stations_m=(0.2,), workers=2)] == [
+        0,
+        1,
+        2,
+    ]
+    assert _children("multiprocessing.spawn") == []
