@@ -108,23 +108,12 @@ def cantilever_modes_t(
     """(n_modes, N) clamped-free mode shapes (or their ``derivative``-th derivative in
     ``x``, 0 or 1) at ``x = s / L``, normalised to 2 at the free end:
     ``cosh(bx) - cos(bx) - sigma (sinh(bx) - sin(bx))``, its growing and decaying
-    exponentials taken apart so the higher modes keep their digits."""
+    exponentials taken apart so the higher modes keep their digits (:func:`_modes_k`)."""
     x = np.asarray(x, dtype=np.float64)
     if derivative not in (0, 1):
         raise ValueError(f"derivative must be 0 or 1, got {derivative}")
     beta, sigma, big = _mode_constants(n_modes)
-    # All modes in one pass of array operations (each element as the per-mode
-    # formula computes it, so the same values).
-    bx = beta[:, None] * x[None, :]
-    grow = np.exp(bx - beta[:, None])  # scaled by e^-beta: only (1 - sigma) e^beta is large
-    decay = np.exp(-bx)
-    b_, s_ = big[:, None], sigma[:, None]
-    if derivative == 0:
-        # cosh - sigma sinh = ((1 - sigma) e^bx + (1 + sigma) e^-bx) / 2
-        out = 0.5 * (b_ * grow + (1 + s_) * decay) - np.cos(bx) + s_ * np.sin(bx)
-    else:
-        out = beta[:, None] * (0.5 * (b_ * grow - (1 + s_) * decay) + np.sin(bx) + s_ * np.cos(bx))
-    return out
+    return _modes_k(np.ascontiguousarray(x, dtype=np.float64), beta, sigma, big, derivative)
 
 
 @lru_cache(maxsize=16)
@@ -518,8 +507,11 @@ def _normal_k(
     k, n = a_t.shape
     aw = np.empty(n)
     for i in range(k):
-        for m in range(lo[i], hi[i]):
-            aw[m] = a_t[i, m] * w[m]
+        # each loop on views from 0 (numba then drops its negative-index check: SIMD)
+        l, h = lo[i], hi[i]
+        x, y, z = a_t[i, l:h], w[l:h], aw[l:h]
+        for m in range(h - l):
+            z[m] = x[m] * y[m]
         for j in range(i + 1):
             m0, m1 = max(lo[i], lo[j]), min(hi[i], hi[j])
             gram[i, j] = gram[j, i] = _dot_k(aw[m0:m1], a_t[j, m0:m1]) if m0 < m1 else 0.0
@@ -610,8 +602,10 @@ def _residuals_k(
     fit = np.zeros(n)
     for i in range(k):
         c = coef[i]
-        for m in range(lo[i], hi[i]):
-            fit[m] += c * a_t[i, m]
+        l, h = lo[i], hi[i]
+        x, z = a_t[i, l:h], fit[l:h]
+        for m in range(h - l):
+            z[m] += c * x[m]
     r = np.empty(n)
     for m in range(n):
         r[m] = b[m] - fit[m]
@@ -809,9 +803,17 @@ def _long_run_k(x: NDArray[np.float64], max_lag: int) -> float:
     if den <= 0:
         return 1.0
     k_max = min(max_lag, n // 4)
+    # all lags' sums x[m] x[m + lag] in one pass over m (the lags innermost: SIMD)
+    acov = np.zeros(k_max)
+    for m in range(n - 1):
+        xm = x[m]
+        top = min(k_max, n - 1 - m)
+        y, z = x[m + 1 : m + 1 + top], acov[:top]
+        for j in range(top):
+            z[j] += xm * y[j]
     s = 0.0
     for lag in range(1, k_max + 1):
-        s += (1.0 - lag / (k_max + 1.0)) * _dot_k(x[lag:], x[: n - lag])
+        s += (1.0 - lag / (k_max + 1.0)) * acov[lag - 1]
     return max(1.0 + 2.0 * s / den, 1.0)
 
 
@@ -923,20 +925,53 @@ def _orthonormalise_k(
 @kernel
 def _basis_k(u: NDArray[np.float64], degree: int, out: NDArray[np.float64]) -> None:
     """:func:`_basis_t` into ``out`` (degree - 1, N): numpy's Legendre recurrence on
-    ``x = 2 u - 1``, times ``u^2``."""
-    for m in range(u.shape[0]):
-        x = 2.0 * u[m] - 1.0
-        uu = u[m] * u[m]
-        p0 = 1.0
-        out[0, m] = p0 * uu
-        if degree > 2:
-            p1 = x
-            out[1, m] = p1 * uu
-            for i in range(2, degree - 1):
-                p2 = (p1 * x * (2 * i - 1) - p0 * (i - 1)) / i
-                out[i, m] = p2 * uu
-                p0 = p1
-                p1 = p2
+    ``x = 2 u - 1`` row by row, each row then times ``u^2`` (the same operations)."""
+    n = u.shape[0]
+    x, uu = np.empty(n), np.empty(n)
+    p0, p1, p2 = np.ones(n), np.empty(n), np.empty(n)
+    for m in range(n):
+        x[m] = 2.0 * u[m] - 1.0
+        uu[m] = u[m] * u[m]
+    for i in range(degree - 1):
+        row = out[i]
+        if i == 1:
+            p1[:] = x
+        elif i >= 2:
+            a, c = 2 * i - 1, i - 1
+            for m in range(n):
+                p2[m] = (p1[m] * x[m] * a - p0[m] * c) / i
+            p0, p1, p2 = p1, p2, p0
+        cur = p0 if i == 0 else p1
+        for m in range(n):
+            row[m] = cur[m] * uu[m]
+
+
+@kernel
+def _modes_k(
+    x: NDArray[np.float64],
+    beta: NDArray[np.float64],
+    sigma: NDArray[np.float64],
+    big: NDArray[np.float64],
+    derivative: int,
+) -> NDArray[np.float64]:
+    """:func:`cantilever_modes_t`, element by element: ``cosh(bx) - sigma sinh(bx)`` as
+    ``((1 - sigma) e^beta e^(bx - beta) + (1 + sigma) e^-bx) / 2``, with ``e^-bx`` as
+    ``e^-beta / e^(bx - beta)`` (one exponential a point, within 2 ulp of its own)."""
+    out = np.empty((beta.shape[0], x.shape[0]))
+    for i in range(beta.shape[0]):
+        bi, s, g = beta[i], sigma[i], big[i]
+        e_b = math.exp(-bi)
+        row = out[i]
+        for m in range(x.shape[0]):
+            bx = bi * x[m]
+            grow = math.exp(bx - bi)
+            decay = e_b / grow
+            c, sn = math.cos(bx), math.sin(bx)
+            if derivative == 0:
+                row[m] = 0.5 * (g * grow + (1 + s) * decay) - c + s * sn
+            else:
+                row[m] = bi * (0.5 * (g * grow - (1 + s) * decay) + sn + s * c)
+    return out
 
 
 #: Trapezoid samples along the centre line for arc lengths: the rule's error,

@@ -306,3 +306,26 @@ def test_free_slope_kernel_against_the_gathered_least_squares() -> None:
     assert abs(slope - exact[2]) <= bound
     assert math.isclose(s2, float(res @ res) / (len(yb) - len(free)), rel_tol=1e-9)
     assert math.isclose(inv22, float(np.linalg.inv(gram)[2, 2]), rel_tol=1e-9)
+
+
+def _modes_ref(x, n_modes, derivative=0):
+    beta, sigma, big = cl._mode_constants(n_modes)
+    bx = beta[:, None] * x[None, :]
+    grow = np.exp(bx - beta[:, None])
+    decay = np.exp(-bx)
+    b_, s_ = big[:, None], sigma[:, None]
+    if derivative == 0:
+        return 0.5 * (b_ * grow + (1 + s_) * decay) - np.cos(bx) + s_ * np.sin(bx)
+    return beta[:, None] * (0.5 * (b_ * grow - (1 + s_) * decay) + np.sin(bx) + s_ * np.cos(bx))
+
+
+@pytest.mark.parametrize("n_modes", [1, 3, 6, 8])
+def test_modes_kernel_against_the_numpy_formula(n_modes: int) -> None:
+    # Each term within a few ulp of numpy's (e^-bx as e^-beta / e^(bx - beta): 2 ulp);
+    # the terms are O(1) (O(beta) for the slope) before they cancel: a few 1e-16 of that.
+    x = np.concatenate([[0.0, 1.0], np.random.default_rng(n_modes).uniform(-0.05, 1.2, 999)])
+    for d in (0, 1):
+        scale = cl._mode_constants(n_modes)[0][:, None] ** d
+        got, ref = cl.cantilever_modes_t(x, n_modes, d), _modes_ref(x, n_modes, d)
+        assert np.all(np.abs(got - ref) <= 1e-14 * scale)
+    assert cl.cantilever_modes_t(np.zeros(0), 3).shape == (3, 0)
