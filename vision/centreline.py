@@ -716,7 +716,7 @@ def _irls_k(
         for m in range(n):
             w[m] = 1.0 if keep[m] else 0.0
         coef, ok = _wls_k(a_t, lo, hi, b, w)
-        _group_scales_k(_residuals_k(a_t, lo, hi, b, coef), ends, keep, True, sig)
+        _group_scales_k(_residuals_k(a_t, lo, hi, b, coef), ends, keep, given, sig)
         return ok
     for m in range(n):
         keep[m] = True
@@ -740,7 +740,8 @@ def _irls_k(
             same = same and inside[m] == keep[m]
         if it >= 2 and same:
             break
-        keep[:] = inside
+        for m in range(n):
+            keep[m] = inside[m]
     return True
 
 
@@ -884,6 +885,76 @@ def _free_slope_k(
 
 
 @kernel
+def _joint_k(
+    a_t: NDArray[np.float64],
+    lo: NDArray[np.int64],
+    hi: NDArray[np.int64],
+    b: NDArray[np.float64],
+    ends: NDArray[np.int64],
+    span_ends: NDArray[np.int64],
+    keep: NDArray[np.bool_],
+    given: bool,
+    sig: NDArray[np.float64],
+    p_shape: int,
+    min_edge: int,
+    u: NDArray[np.float64],
+) -> tuple[
+    int,
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    float,
+    float,
+    float,
+    float,
+    float,
+]:
+    """:func:`_fit_joint`'s arithmetic in one call: the inliers (:func:`_irls_k`), the
+    edges' checks, the final fit (:func:`_final_k`), the span statistics
+    (:func:`_span_stats_k`) and, unless ``given``, the free-root-slope check
+    (:func:`_free_slope_k` on the width, an offset, ``u`` and the shape rows, the last
+    ``p_shape`` of ``a_t``, over the beam's points). Returns a status (0: fitted; 1: a
+    beam edge keeps fewer than ``min_edge`` points; 2: a hub edge (spans 3 and 4) fewer
+    than 3; 3: a singular normal matrix), the coefficients, the residuals, the inverse
+    normal matrix, the long-run inflation, the edges' lag-1 correlation, and the free
+    slope's coefficient, residual variance and inverse-normal element (NaN if given)."""
+    k = a_t.shape[0]
+    nan = np.nan
+    empty2 = np.empty((0, 0))
+    if not _irls_k(a_t, lo, hi, b, ends, keep, given, sig):
+        return 3, b, b, empty2, nan, nan, nan, nan, nan
+    start = 0
+    for s in range(span_ends.shape[0]):
+        cnt = 0
+        for m in range(start, span_ends[s]):
+            if keep[m]:
+                cnt += 1
+        if cnt < (min_edge if s < 2 else 3):
+            return 1 if s < 2 else 2, b, b, empty2, nan, nan, nan, nan, nan
+        start = span_ends[s]
+    coef, r, inv, ok = _final_k(a_t, lo, hi, b, ends, keep, sig, p_shape + 2)
+    if not ok:
+        return 3, b, b, empty2, nan, nan, nan, nan, nan
+    infl, rho = _span_stats_k(r, keep, span_ends, LONG_RUN_LAGS)
+    free2, s2_free, inv22 = nan, nan, nan
+    if not given:
+        n_beam = span_ends[1]
+        ab = np.empty((3 + p_shape, n_beam))
+        for m in range(n_beam):
+            ab[0, m] = a_t[0, m]
+            ab[1, m] = 1.0
+            ab[2, m] = u[m]
+        for i in range(p_shape):
+            src, dst = a_t[k - p_shape + i], ab[3 + i]
+            for m in range(n_beam):
+                dst[m] = src[m]
+        free2, s2_free, inv22, ok = _free_slope_k(ab, b[:n_beam], keep[:n_beam])
+        if not ok:
+            return 3, b, b, empty2, nan, nan, nan, nan, nan
+    return 0, coef, r, inv, infl, rho, free2, s2_free, inv22
+
+
+@kernel
 def _orthonormalise_k(
     rows: NDArray[np.float64], n_first: int
 ) -> tuple[NDArray[np.float64], int, int]:
@@ -928,22 +999,26 @@ def _basis_k(u: NDArray[np.float64], degree: int, out: NDArray[np.float64]) -> N
     ``x = 2 u - 1`` row by row, each row then times ``u^2`` (the same operations)."""
     n = u.shape[0]
     x, uu = np.empty(n), np.empty(n)
-    p0, p1, p2 = np.ones(n), np.empty(n), np.empty(n)
     for m in range(n):
         x[m] = 2.0 * u[m] - 1.0
         uu[m] = u[m] * u[m]
+    leg = np.empty((degree - 1, n))  # the Legendre rows, unscaled
     for i in range(degree - 1):
-        row = out[i]
-        if i == 1:
-            p1[:] = x
-        elif i >= 2:
+        row = leg[i]
+        if i == 0:
+            for m in range(n):
+                row[m] = 1.0
+        elif i == 1:
+            for m in range(n):
+                row[m] = x[m]
+        else:
+            p1, p0 = leg[i - 1], leg[i - 2]
             a, c = 2 * i - 1, i - 1
             for m in range(n):
-                p2[m] = (p1[m] * x[m] * a - p0[m] * c) / i
-            p0, p1, p2 = p1, p2, p0
-        cur = p0 if i == 0 else p1
+                row[m] = (p1[m] * x[m] * a - p0[m] * c) / i
+        dst = out[i]
         for m in range(n):
-            row[m] = cur[m] * uu[m]
+            dst[m] = row[m] * uu[m]
 
 
 @kernel
@@ -1180,7 +1255,7 @@ def _fit_joint(
         # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
         b[:n_beam] += modal.correction(a_all[:n_beam])
     # The groups (the beam's edges, the hub's) by their ends; each group's scale and
-    # the inliers chosen in one kernel (:func:`_irls_k`).
+    # the inliers chosen in one kernel (:func:`_joint_k`).
     ends = np.array([n_beam, n_all] if use_hub else [n_beam], dtype=np.int64)
     # Where each row of the design matrix is not 0: the width and the shape on the
     # beam's edges, the turn everywhere, each hub offset on its edge.
@@ -1195,13 +1270,26 @@ def _fit_joint(
     given = inliers is not None and len(inliers) == n_all
     if given:  # another fit's inliers: each group's scale from one fit to them
         keep = np.array(inliers, dtype=bool)
-    if not _irls_k(a_t, lo, hi, b, ends, keep, given, sig):
+    span_ends = [nl, n_beam] + ([n_beam + len(hub_a), n_all] if use_hub else [])
+    status, coef, r, gram_inv, infl, edge_rho, free2, s2_free, inv22 = _joint_k(
+        a_t,
+        lo,
+        hi,
+        b,
+        ends,
+        np.array(span_ends, dtype=np.int64),
+        keep,
+        given,
+        sig,
+        p_shape,
+        degree + 4,
+        u,
+    )
+    if status == 3:
         raise np.linalg.LinAlgError("Singular matrix")
-    if keep[:nl].sum() < degree + 4 or keep[nl:n_beam].sum() < degree + 4:
+    if status == 1:
         return "beam edges too ragged"
-    if use_hub and (
-        keep[n_beam : n_beam + len(hub_a)].sum() < 3 or keep[n_beam + len(hub_a) :].sum() < 3
-    ):  # the hub's edges are not straight lines: the beam's root alone
+    if status == 2:  # the hub's edges are not straight lines: the beam's root alone
         empty = np.zeros((0, 2))
         return _fit_joint(
             left,
@@ -1214,14 +1302,9 @@ def _fit_joint(
             modal,
             edge_slope,
         )
-    # Final fit: the inliers, each group at its own variance (from its residuals).
-    coef, r, gram_inv, ok = _final_k(a_t, lo, hi, b, ends, keep, sig, p_shape + 2)
-    if not ok:
-        raise np.linalg.LinAlgError("Singular matrix")
-    # The largest long-run inflation over the edges' inlier residuals, and the beam
-    # edges' largest lag-1 correlation.
-    span_ends = [nl, n_beam] + ([n_beam + len(hub_a), n_all] if use_hub else [])
-    infl, edge_rho = _span_stats_k(r, keep, np.array(span_ends, dtype=np.int64), LONG_RUN_LAGS)
+    # With the inliers came the final fit (each group at its own variance, from its
+    # residuals), the largest long-run inflation over the edges' inlier residuals and
+    # the beam edges' largest lag-1 correlation.
     cov = gram_inv * infl
     g_tip = np.zeros(n_coef)
     if modal is None:
@@ -1244,21 +1327,13 @@ def _fit_joint(
 
     # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
     # free offset and a free slope at the root (not for a reference on another fit's
-    # inliers, whose root is that fit's to check). Its rows (width, offset, slope,
-    # shape) over all the beam's points, the outliers at weight 0 (:func:`_free_slope_k`).
+    # inliers, whose root is that fit's to check), fitted in :func:`_joint_k`: its rows
+    # (width, offset, slope, shape) over the beam's points, the outliers at weight 0.
     kb = keep[:n_beam]
     n_kb = int(np.count_nonzero(kb))
     yb = b[:n_beam][kb]
     slope, slope_sd = math.nan, math.nan
     if not given:
-        ab = np.empty((3 + p_shape, n_beam))
-        ab[0] = a_t[0, :n_beam]
-        ab[1] = 1.0
-        ab[2] = u
-        ab[3:] = a_t[n_coef - p_shape :, :n_beam]
-        free2, s2_free, inv22, ok = _free_slope_k(ab, b[:n_beam], kb)
-        if not ok:
-            raise np.linalg.LinAlgError("Singular matrix")
         slope = free2 / amax
         slope_sd = math.sqrt(max(inv22 * s2_free * infl, 0.0)) / amax
     centre: CentreLine | ModalCentreLine

@@ -329,3 +329,53 @@ def test_modes_kernel_against_the_numpy_formula(n_modes: int) -> None:
         got, ref = cl.cantilever_modes_t(x, n_modes, d), _modes_ref(x, n_modes, d)
         assert np.all(np.abs(got - ref) <= 1e-14 * scale)
     assert cl.cantilever_modes_t(np.zeros(0), 3).shape == (3, 0)
+
+
+def test_joint_kernel_statuses_are_the_numpy_checks() -> None:
+    rng = np.random.default_rng(12)
+    a_t, b, lo, hi, _, ends = _joint_problem(rng, nl=211, nr=205, nha=23, nhb=21)
+    n_beam, n_all = 211 + 205, len(b)
+    span_ends = np.array([211, n_beam, n_beam + 23, n_all], dtype=np.int64)
+    u = a_t[1, :n_beam] - 0.043
+    p_shape = a_t.shape[0] - 4
+    keep, sig = np.ones(n_all, dtype=bool), np.ones(n_all)
+    out = cl._joint_k(a_t, lo, hi, b, ends, span_ends, keep, False, sig, p_shape, 11, u)
+    assert out[0] == 0 and np.isfinite(out[6])
+    # another fit's inliers that leave one hub edge 2 points: status 2 (drop the hub)
+    given = np.ones(n_all, dtype=bool)
+    given[n_beam + 23 + 2 :] = False
+    out = cl._joint_k(a_t, lo, hi, b, ends, span_ends, given, True, sig, p_shape, 11, u)
+    assert out[0] == 2
+    # ... and a right edge 10 points, below a minimum of 11: status 1 (too ragged)
+    given = np.ones(n_all, dtype=bool)
+    given[211 + 10 : n_beam] = False
+    out = cl._joint_k(a_t, lo, hi, b, ends, span_ends, given, True, sig, p_shape, 11, u)
+    assert out[0] == 1
+    given[211 + 10] = True  # 11: enough; given inliers, no free-slope check
+    out = cl._joint_k(a_t, lo, hi, b, ends, span_ends, given, True, sig, p_shape, 11, u)
+    assert out[0] == 0 and math.isnan(out[6])
+    # a design row of zeros: singular, status 3 (np.linalg would raise)
+    a0 = a_t.copy()
+    a0[5] = 0.0
+    keep = np.ones(n_all, dtype=bool)
+    assert cl._joint_k(a0, lo, hi, b, ends, span_ends, keep, False, sig, p_shape, 11, u)[0] == 3
+
+
+def test_given_inliers_that_leave_a_hub_edge_two_points_fit_without_the_hub() -> None:
+    rng = np.random.default_rng(13)
+    a = np.sort(rng.uniform(0.02, 0.7, 300))
+    shape = 0.004 * (a / 0.7) ** 2
+    left = np.column_stack([a, shape + 0.009 + 2e-5 * rng.standard_normal(300)])
+    right = np.column_stack([a, shape - 0.009 + 2e-5 * rng.standard_normal(300)])
+    hub_x = np.linspace(-0.06, -0.01, 40)
+    hub_a = np.column_stack([hub_x, 0.011 + 2e-5 * rng.standard_normal(40)])
+    hub_b = np.column_stack([hub_x[:20], -0.011 + 2e-5 * rng.standard_normal(20)])
+    given = np.ones(660, dtype=bool)
+    given[642:] = False  # the second hub edge: 2 of its 20 points
+    with_hub = cl.fit_clamped_joint(left, right, hub_a, hub_b, 7, 0.7, 0.05, inliers=given)
+    none = np.zeros((0, 2))
+    without = cl.fit_clamped_joint(left, right, none, none, 7, 0.7, 0.05)
+    assert not isinstance(with_hub, str) and not isinstance(without, str)
+    assert math.isnan(with_hub.hub_width) and math.isnan(without.hub_width)
+    assert with_hub.rotation_rad == without.rotation_rad
+    assert with_hub.fit.tip_sd == without.fit.tip_sd
