@@ -35,6 +35,7 @@ from numpy.polynomial import Legendre, Polynomial
 from numpy.polynomial import polynomial as pw
 from numpy.typing import NDArray
 
+from vision.jit import kernel
 from vision.sampling import median
 
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
@@ -107,23 +108,12 @@ def cantilever_modes_t(
     """(n_modes, N) clamped-free mode shapes (or their ``derivative``-th derivative in
     ``x``, 0 or 1) at ``x = s / L``, normalised to 2 at the free end:
     ``cosh(bx) - cos(bx) - sigma (sinh(bx) - sin(bx))``, its growing and decaying
-    exponentials taken apart so the higher modes keep their digits."""
+    exponentials taken apart so the higher modes keep their digits (:func:`_modes_k`)."""
     x = np.asarray(x, dtype=np.float64)
     if derivative not in (0, 1):
         raise ValueError(f"derivative must be 0 or 1, got {derivative}")
     beta, sigma, big = _mode_constants(n_modes)
-    # All modes in one pass of array operations (each element as the per-mode
-    # formula computes it, so the same values).
-    bx = beta[:, None] * x[None, :]
-    grow = np.exp(bx - beta[:, None])  # scaled by e^-beta: only (1 - sigma) e^beta is large
-    decay = np.exp(-bx)
-    b_, s_ = big[:, None], sigma[:, None]
-    if derivative == 0:
-        # cosh - sigma sinh = ((1 - sigma) e^bx + (1 + sigma) e^-bx) / 2
-        out = 0.5 * (b_ * grow + (1 + s_) * decay) - np.cos(bx) + s_ * np.sin(bx)
-    else:
-        out = beta[:, None] * (0.5 * (b_ * grow - (1 + s_) * decay) + np.sin(bx) + s_ * np.cos(bx))
-    return out
+    return _modes_k(np.ascontiguousarray(x, dtype=np.float64), beta, sigma, big, derivative)
 
 
 @lru_cache(maxsize=16)
@@ -325,15 +315,9 @@ def _basis_t(
     u: NDArray[np.float64], degree: int, out: NDArray[np.float64] | None = None
 ) -> NDArray[np.float64]:
     """:func:`_basis` transposed, (degree - 1, N), built in that layout (numpy's own
-    Legendre recurrence, so the same values); into ``out`` when given."""
-    x = 2.0 * u - 1.0
+    Legendre recurrence, so the same values); into ``out`` (C-contiguous) when given."""
     v = np.empty((degree - 1, len(u))) if out is None else out
-    v[0] = x * 0 + 1
-    if degree > 2:
-        v[1] = x
-    for i in range(2, degree - 1):
-        v[i] = (v[i - 1] * x * (2 * i - 1) - v[i - 2] * (i - 1)) / i
-    v *= u * u
+    _basis_k(np.ascontiguousarray(u, dtype=np.float64), degree, v)
     return v
 
 
@@ -380,37 +364,12 @@ def long_run_inflation(res: NDArray[np.float64], max_lag: int = LONG_RUN_LAGS) -
     return long_run_inflation_max([np.asarray(res, dtype=np.float64)], max_lag)
 
 
-@lru_cache(maxsize=128)
-def _bartlett(k_max: int) -> NDArray[np.float64]:
-    """Bartlett's window ``1 - k / (K + 1)`` at lags ``k = 1 .. K`` (read-only; the same
-    for every edge of at least ``4 K`` points)."""
-    lags = np.arange(1, k_max + 1)
-    out = 1.0 - lags / (k_max + 1.0)
-    out.setflags(write=False)
-    return out
-
-
 def long_run_inflation_max(spans: list[NDArray[np.float64]], max_lag: int = LONG_RUN_LAGS) -> float:
     """The largest :func:`long_run_inflation` over residual ``spans`` (one per edge),
-    their autocorrelations taken in one transform."""
-    spans = [x for x in spans if len(x) >= 8]
-    if not spans:
-        return 1.0
-    n_max = max(len(x) for x in spans)
-    size = 1 << math.ceil(math.log2(n_max + min(max_lag, n_max // 4) + 1))
-    stack = np.zeros((len(spans), size))
-    for i, x in enumerate(spans):
-        stack[i, : len(x)] = x
-    f = np.fft.rfft(stack, axis=1)
-    acov = np.fft.irfft(f * np.conj(f), size, axis=1)
+    each by direct sums over the lags (a kernel)."""
     best = 1.0
-    for i, x in enumerate(spans):
-        den = float(acov[i, 0])
-        if den <= 0:
-            continue
-        k_max = int(min(max_lag, len(x) // 4))
-        factor = 1.0 + 2.0 * float(_bartlett(k_max) @ acov[i, 1 : k_max + 1]) / den
-        best = max(best, factor)
+    for x in spans:
+        best = max(best, _long_run_k(np.ascontiguousarray(x, dtype=np.float64), max_lag))
     return best
 
 
@@ -488,7 +447,7 @@ def fit_centreline(
 
 def _orthonormal_rows(x: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.float64], int]:
     """Orthonormal rows spanning the rows of ``x`` (K, N), in order, by Gram-Schmidt run
-    twice (orthogonal to rounding however near the rows lie; in numpy on a few long rows,
+    twice (orthogonal to rounding however near the rows lie; a kernel on a few long rows,
     where LAPACK's threaded QR stalls on a busy host). A row with
     less than 1e-9 of its norm left is dropped; also how many of the first ``n_first``
     rows were kept."""
@@ -498,58 +457,596 @@ def _orthonormal_rows(x: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.
 def _orthonormalise(rows: NDArray[np.float64], n_first: int) -> tuple[NDArray[np.float64], int]:
     """:func:`_orthonormal_rows` on a float64 array of the caller's that it overwrites
     (no copy)."""
-    q = np.empty_like(rows)
-    k = 0
-    kept_first = 0
-    for i in range(len(rows)):
-        v = rows[i]
-        norm0 = float(np.sqrt(v @ v))
-        if norm0 == 0.0:
-            continue
-        # Against all kept rows at once, twice (classical Gram-Schmidt, reorthogonalised:
-        # as orthogonal as the modified form run twice, in two products per pass).
-        for _ in range(2):
-            if k:
-                v -= (q[:k] @ v) @ q[:k]
-        norm = float(np.sqrt(v @ v))
-        if norm <= 1e-9 * norm0:
-            continue
-        q[k] = v / norm
-        k += 1
-        kept_first += i < n_first
+    q, k, kept_first = _orthonormalise_k(np.ascontiguousarray(rows), n_first)
     return q[:k], kept_first
 
 
-def _wlstsq(
-    a_t: NDArray[np.float64],
-    b: NDArray[np.float64],
-    w: NDArray[np.float64],
-    out: NDArray[np.float64] | None = None,
-) -> NDArray:
+def _wlstsq(a_t: NDArray[np.float64], b: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray:
     """Weighted least squares with the design matrix transposed (coefficients, points).
 
-    Normal equations of a small, well-conditioned basis (Legendre on [0, 1]): a tenth of
-    the cost of an SVD solve, which matters at a frame rate. ``out``: a buffer of
-    ``a_t``'s shape for the weighted matrix (the same products, no fresh array)."""
-    aw = np.multiply(a_t, w, out=out)
-    return np.asarray(np.linalg.solve(aw @ a_t.T, aw @ b))
+    Normal equations of a small, well-conditioned basis (Legendre on [0, 1]), solved by
+    LU with partial pivoting as ``np.linalg.solve`` does (:func:`_wls_k`): a tenth of the
+    cost of an SVD solve, which matters at a frame rate."""
+    k, n = a_t.shape
+    lo, hi = np.zeros(k, dtype=np.int64), np.full(k, n, dtype=np.int64)
+    coef, ok = _wls_k(
+        np.ascontiguousarray(a_t), lo, hi, b, np.ascontiguousarray(w, dtype=np.float64)
+    )
+    if not ok:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return coef
 
 
-def _group_scales(
+# -- compiled kernels (vision.jit): a fit is a few kernel calls, not hundreds of numpy
+# calls. Each is the numpy form it replaced written out as loops (tests/vision/
+# test_centreline_kernels.py keeps that form as the reference): the same products, the
+# same decisions; only the order of the sums differs (rounding).
+
+
+@kernel
+def _dot_k(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
+    """``x @ y`` (BLAS's dot, as numpy's ``@`` of two vectors calls it; 0 when empty)."""
+    if x.shape[0] == 0:
+        return 0.0
+    return float(np.dot(x, y))
+
+
+@kernel
+def _normal_k(
+    a_t: NDArray[np.float64],
+    lo: NDArray[np.int64],
+    hi: NDArray[np.int64],
+    b: NDArray[np.float64],
+    w: NDArray[np.float64],
+    gram: NDArray[np.float64],
+    rhs: NDArray[np.float64],
+) -> None:
+    """``aw = a_t * w``; ``gram = aw @ a_t.T``, ``rhs = aw @ b`` (into the arguments),
+    where row ``i`` of ``a_t`` is 0 outside ``lo[i] .. hi[i]`` (the products of those
+    exact zeros are left out of the sums: the same sums)."""
+    k, n = a_t.shape
+    aw = np.empty(n)
+    for i in range(k):
+        # each loop on views from 0 (numba then drops its negative-index check: SIMD)
+        l, h = lo[i], hi[i]
+        x, y, z = a_t[i, l:h], w[l:h], aw[l:h]
+        for m in range(h - l):
+            z[m] = x[m] * y[m]
+        for j in range(i + 1):
+            m0, m1 = max(lo[i], lo[j]), min(hi[i], hi[j])
+            gram[i, j] = gram[j, i] = _dot_k(aw[m0:m1], a_t[j, m0:m1]) if m0 < m1 else 0.0
+        rhs[i] = _dot_k(aw[lo[i] : hi[i]], b[lo[i] : hi[i]])
+
+
+@kernel
+def _lu_k(g: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int64], bool]:
+    """LU factors of ``g`` with partial pivoting (LAPACK getrf's algorithm, as
+    ``np.linalg.solve`` and ``inv`` use it); False where a pivot is exactly 0 (where
+    LAPACK reports the matrix singular)."""
+    k = g.shape[0]
+    lu = g.copy()
+    piv = np.arange(k)
+    for c in range(k):
+        p = c
+        best = abs(lu[c, c])
+        for r in range(c + 1, k):
+            if abs(lu[r, c]) > best:
+                best = abs(lu[r, c])
+                p = r
+        if best == 0.0:
+            return lu, piv, False
+        if p != c:
+            for j in range(k):
+                t = lu[c, j]
+                lu[c, j] = lu[p, j]
+                lu[p, j] = t
+            t2 = piv[c]
+            piv[c] = piv[p]
+            piv[p] = t2
+        for r in range(c + 1, k):
+            f = lu[r, c] / lu[c, c]
+            lu[r, c] = f
+            for j in range(c + 1, k):
+                lu[r, j] -= f * lu[c, j]
+    return lu, piv, True
+
+
+@kernel
+def _lu_solve_k(
+    lu: NDArray[np.float64], piv: NDArray[np.int64], rhs: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``g^-1 rhs`` from :func:`_lu_k`'s factors."""
+    k = lu.shape[0]
+    x = np.empty(k)
+    for i in range(k):
+        x[i] = rhs[piv[i]]
+    for i in range(k):
+        s = x[i]
+        for j in range(i):
+            s -= lu[i, j] * x[j]
+        x[i] = s
+    for i in range(k - 1, -1, -1):
+        s = x[i]
+        for j in range(i + 1, k):
+            s -= lu[i, j] * x[j]
+        x[i] = s / lu[i, i]
+    return x
+
+
+@kernel
+def _lu_inv_k(lu: NDArray[np.float64], piv: NDArray[np.int64]) -> NDArray[np.float64]:
+    """``g^-1`` from :func:`_lu_k`'s factors (column by column, as ``np.linalg.inv``
+    solves for the identity)."""
+    k = lu.shape[0]
+    out = np.empty((k, k))
+    e = np.zeros(k)
+    for c in range(k):
+        e[c] = 1.0
+        col = _lu_solve_k(lu, piv, e)
+        e[c] = 0.0
+        for i in range(k):
+            out[i, c] = col[i]
+    return out
+
+
+@kernel
+def _residuals_k(
+    a_t: NDArray[np.float64],
+    lo: NDArray[np.int64],
+    hi: NDArray[np.int64],
+    b: NDArray[np.float64],
+    coef: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """``b - coef @ a_t`` (``a_t``'s rows 0 outside ``lo .. hi``, as in :func:`_normal_k`)."""
+    k, n = a_t.shape
+    fit = np.zeros(n)
+    for i in range(k):
+        c = coef[i]
+        l, h = lo[i], hi[i]
+        x, z = a_t[i, l:h], fit[l:h]
+        for m in range(h - l):
+            z[m] += c * x[m]
+    r = np.empty(n)
+    for m in range(n):
+        r[m] = b[m] - fit[m]
+    return r
+
+
+@kernel
+def _wls_k(
+    a_t: NDArray[np.float64],
+    lo: NDArray[np.int64],
+    hi: NDArray[np.int64],
+    b: NDArray[np.float64],
+    w: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], bool]:
+    """:func:`_wlstsq`: the weighted normal equations solved by LU (False: singular)."""
+    k = a_t.shape[0]
+    gram = np.empty((k, k))
+    rhs = np.empty(k)
+    _normal_k(a_t, lo, hi, b, w, gram, rhs)
+    lu, piv, ok = _lu_k(gram)
+    if not ok:
+        return np.full(k, np.nan), False
+    return _lu_solve_k(lu, piv, rhs), True
+
+
+@kernel
+def _median_k(x: NDArray[np.float64]) -> float:
+    """:func:`vision.sampling.median` of ``x``, which it reorders (Wirth's selection: the
+    same order statistics, so the same value; NaN if ``x`` holds one or is empty)."""
+    n = x.shape[0]
+    if n == 0:
+        return np.nan
+    for m in range(n):
+        if x[m] != x[m]:
+            return np.nan
+    k = n // 2
+    lo, hi = 0, n - 1
+    while lo < hi:
+        pivot = x[k]
+        i, j = lo, hi
+        while True:
+            while x[i] < pivot:
+                i += 1
+            while pivot < x[j]:
+                j -= 1
+            if i <= j:
+                t = x[i]
+                x[i] = x[j]
+                x[j] = t
+                i += 1
+                j -= 1
+            if i > j:
+                break
+        if j < k:
+            lo = i
+        if k < i:
+            hi = j
+    if n % 2:
+        return x[k]
+    below = x[0]
+    for m in range(1, k):
+        if x[m] > below:
+            below = x[m]
+    return 0.5 * (below + x[k])
+
+
+@kernel
+def _group_scales_k(
     r: NDArray[np.float64],
-    groups: list[slice],
-    keep: NDArray[np.bool_] | None,
+    ends: NDArray[np.int64],
+    keep: NDArray[np.bool_],
+    use_keep: bool,
     sig: NDArray[np.float64],
 ) -> None:
-    """Each group's robust scale of the residuals ``r`` (its ``keep`` points; None: all),
-    ``1.4826 median |r| + 1e-12`` (1 for a group with none), written into ``sig``; each
-    median partitions the fresh ``|r|`` in place (no copy)."""
-    for g in groups:
-        rg = r[g] if keep is None else r[g][keep[g]]
-        if len(rg):
-            sig[g] = 1.4826 * median(np.abs(rg), overwrite_input=True) + 1e-12
+    """:func:`_group_scales` for the groups ``[0, ends[0])``, ``[ends[0], ends[1])``..."""
+    buf = np.empty(r.shape[0])
+    start = 0
+    for end in ends:
+        n = 0
+        for m in range(start, end):
+            if not use_keep or keep[m]:
+                buf[n] = abs(r[m])
+                n += 1
+        s = 1.4826 * _median_k(buf[:n]) + 1e-12 if n else 1.0
+        for m in range(start, end):
+            sig[m] = s
+        start = end
+
+
+@kernel
+def _irls_k(
+    a_t: NDArray[np.float64],
+    lo: NDArray[np.int64],
+    hi: NDArray[np.int64],
+    b: NDArray[np.float64],
+    ends: NDArray[np.int64],
+    keep: NDArray[np.bool_],
+    given: bool,
+    sig: NDArray[np.float64],
+) -> bool:
+    """:func:`_fit_joint`'s choice of inliers: ``keep`` (another fit's when ``given``,
+    else chosen here) and each group's scale ``sig`` (written into the arguments).
+    Tukey's biweight, up to five solves, stopping once two in a row keep the same
+    points; False where a solve met a singular matrix."""
+    n = b.shape[0]
+    w = np.ones(n)
+    if given:
+        for m in range(n):
+            w[m] = 1.0 if keep[m] else 0.0
+        coef, ok = _wls_k(a_t, lo, hi, b, w)
+        _group_scales_k(_residuals_k(a_t, lo, hi, b, coef), ends, keep, given, sig)
+        return ok
+    for m in range(n):
+        keep[m] = True
+        sig[m] = 1.0
+    wk = np.empty(n)
+    inside = np.empty(n, dtype=np.bool_)
+    for it in range(5):
+        for m in range(n):
+            wk[m] = w[m] / (sig[m] * sig[m])
+        coef, ok = _wls_k(a_t, lo, hi, b, wk)
+        if not ok:
+            return False
+        r = _residuals_k(a_t, lo, hi, b, coef)
+        _group_scales_k(r, ends, keep, it != 0, sig)
+        same = True
+        for m in range(n):
+            z = r[m] / (TUKEY_C * sig[m])
+            inside[m] = abs(z) < 1.0
+            t = 1.0 - z * z
+            w[m] = t * t if inside[m] else 0.0
+            same = same and inside[m] == keep[m]
+        if it >= 2 and same:
+            break
+        for m in range(n):
+            keep[m] = inside[m]
+    return True
+
+
+@kernel
+def _final_k(
+    a_t: NDArray[np.float64],
+    lo: NDArray[np.int64],
+    hi: NDArray[np.int64],
+    b: NDArray[np.float64],
+    ends: NDArray[np.int64],
+    keep: NDArray[np.bool_],
+    sig: NDArray[np.float64],
+    p_beam: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], bool]:
+    """:func:`_fit_joint`'s final fit: the inliers at ``1 / sig^2``, then each group at
+    the variance of its residuals (``p_beam`` coefficients for the first group's degrees
+    of freedom, 2 for the others). Returns the coefficients, the residuals, the inverse
+    normal matrix, and False where a solve met a singular matrix."""
+    k, n = a_t.shape
+    w = np.zeros(n)
+    for m in range(n):
+        if keep[m]:
+            w[m] = 1.0 / (sig[m] * sig[m])
+    coef, ok = _wls_k(a_t, lo, hi, b, w)
+    if not ok:
+        return coef, b.copy(), np.full((k, k), np.nan), False
+    r = _residuals_k(a_t, lo, hi, b, coef)
+    start = 0
+    for g in range(ends.shape[0]):
+        end = ends[g]
+        nk = 0
+        ss = 0.0
+        for m in range(start, end):
+            if keep[m]:
+                nk += 1
+                ss += r[m] * r[m]
+        dof = max(nk - (p_beam if g == 0 else 2), 1)
+        v = ss / dof if nk else 1.0
+        for m in range(start, end):
+            w[m] = 1.0 / max(v, 1e-18) if keep[m] else 0.0
+        start = end
+    gram = np.empty((k, k))
+    rhs = np.empty(k)
+    _normal_k(a_t, lo, hi, b, w, gram, rhs)
+    lu, piv, ok = _lu_k(gram)
+    if not ok:
+        return coef, r, np.full((k, k), np.nan), False
+    coef = _lu_solve_k(lu, piv, rhs)
+    return coef, _residuals_k(a_t, lo, hi, b, coef), _lu_inv_k(lu, piv), True
+
+
+@kernel
+def _long_run_k(x: NDArray[np.float64], max_lag: int) -> float:
+    """:func:`long_run_inflation` of one edge's residuals ``x`` by direct sums over the
+    lags (the definition; 1 for fewer than 8 points or all zero)."""
+    n = x.shape[0]
+    if n < 8:
+        return 1.0
+    den = _dot_k(x, x)
+    if den <= 0:
+        return 1.0
+    k_max = min(max_lag, n // 4)
+    # all lags' sums x[m] x[m + lag] in one pass over m (the lags innermost: SIMD)
+    acov = np.zeros(k_max)
+    for m in range(n - 1):
+        xm = x[m]
+        top = min(k_max, n - 1 - m)
+        y, z = x[m + 1 : m + 1 + top], acov[:top]
+        for j in range(top):
+            z[j] += xm * y[j]
+    s = 0.0
+    for lag in range(1, k_max + 1):
+        s += (1.0 - lag / (k_max + 1.0)) * acov[lag - 1]
+    return max(1.0 + 2.0 * s / den, 1.0)
+
+
+@kernel
+def _lag1_k(x: NDArray[np.float64]) -> float:
+    """:func:`lag1_correlation`."""
+    n = x.shape[0]
+    if n < 4:
+        return 0.0
+    den = _dot_k(x, x)
+    return _dot_k(x[1:], x[: n - 1]) / den if den > 0 else 0.0
+
+
+@kernel
+def _span_stats_k(
+    r: NDArray[np.float64], keep: NDArray[np.bool_], ends: NDArray[np.int64], max_lag: int
+) -> tuple[float, float]:
+    """Over the spans ``[0, ends[0])``, ``[ends[0], ends[1])``...: their kept residuals'
+    largest :func:`long_run_inflation` and the first two's largest
+    :func:`lag1_correlation`."""
+    buf = np.empty(r.shape[0])
+    infl = 1.0
+    rho = -np.inf
+    start = 0
+    for s in range(ends.shape[0]):
+        n = 0
+        for m in range(start, ends[s]):
+            if keep[m]:
+                buf[n] = r[m]
+                n += 1
+        infl = max(infl, _long_run_k(buf[:n], max_lag))
+        if s < 2:
+            rho = max(rho, _lag1_k(buf[:n]))
+        start = ends[s]
+    return infl, rho
+
+
+@kernel
+def _free_slope_k(
+    ab: NDArray[np.float64], y: NDArray[np.float64], keep: NDArray[np.bool_]
+) -> tuple[float, float, float, bool]:
+    """The free-root-slope check's least squares on the rows ``ab`` at the points
+    ``keep``: the third coefficient, the residual variance, and the third diagonal
+    element of the inverse normal matrix (False: singular)."""
+    k, n = ab.shape
+    w = np.zeros(n)
+    n_k = 0
+    for m in range(n):
+        if keep[m]:
+            w[m] = 1.0
+            n_k += 1
+    gram = np.empty((k, k))
+    rhs = np.empty(k)
+    lo, hi = np.zeros(k, dtype=np.int64), np.full(k, n, dtype=np.int64)
+    _normal_k(ab, lo, hi, y, w, gram, rhs)
+    lu, piv, ok = _lu_k(gram)
+    if not ok:
+        return np.nan, np.nan, np.nan, False
+    free = _lu_solve_k(lu, piv, rhs)
+    r = _residuals_k(ab, lo, hi, y, free)
+    ss = 0.0
+    for m in range(n):
+        if keep[m]:
+            ss += r[m] * r[m]
+    e = np.zeros(k)
+    e[2] = 1.0
+    return free[2], ss / max(n_k - k, 1), _lu_solve_k(lu, piv, e)[2], True
+
+
+@kernel
+def _joint_k(
+    a_t: NDArray[np.float64],
+    lo: NDArray[np.int64],
+    hi: NDArray[np.int64],
+    b: NDArray[np.float64],
+    ends: NDArray[np.int64],
+    span_ends: NDArray[np.int64],
+    keep: NDArray[np.bool_],
+    given: bool,
+    sig: NDArray[np.float64],
+    p_shape: int,
+    min_edge: int,
+    u: NDArray[np.float64],
+) -> tuple[
+    int,
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    float,
+    float,
+    float,
+    float,
+    float,
+]:
+    """:func:`_fit_joint`'s arithmetic in one call: the inliers (:func:`_irls_k`), the
+    edges' checks, the final fit (:func:`_final_k`), the span statistics
+    (:func:`_span_stats_k`) and, unless ``given``, the free-root-slope check
+    (:func:`_free_slope_k` on the width, an offset, ``u`` and the shape rows, the last
+    ``p_shape`` of ``a_t``, over the beam's points). Returns a status (0: fitted; 1: a
+    beam edge keeps fewer than ``min_edge`` points; 2: a hub edge (spans 3 and 4) fewer
+    than 3; 3: a singular normal matrix), the coefficients, the residuals, the inverse
+    normal matrix, the long-run inflation, the edges' lag-1 correlation, and the free
+    slope's coefficient, residual variance and inverse-normal element (NaN if given)."""
+    k = a_t.shape[0]
+    nan = np.nan
+    empty2 = np.empty((0, 0))
+    if not _irls_k(a_t, lo, hi, b, ends, keep, given, sig):
+        return 3, b, b, empty2, nan, nan, nan, nan, nan
+    start = 0
+    for s in range(span_ends.shape[0]):
+        cnt = 0
+        for m in range(start, span_ends[s]):
+            if keep[m]:
+                cnt += 1
+        if cnt < (min_edge if s < 2 else 3):
+            return 1 if s < 2 else 2, b, b, empty2, nan, nan, nan, nan, nan
+        start = span_ends[s]
+    coef, r, inv, ok = _final_k(a_t, lo, hi, b, ends, keep, sig, p_shape + 2)
+    if not ok:
+        return 3, b, b, empty2, nan, nan, nan, nan, nan
+    infl, rho = _span_stats_k(r, keep, span_ends, LONG_RUN_LAGS)
+    free2, s2_free, inv22 = nan, nan, nan
+    if not given:
+        n_beam = span_ends[1]
+        ab = np.empty((3 + p_shape, n_beam))
+        for m in range(n_beam):
+            ab[0, m] = a_t[0, m]
+            ab[1, m] = 1.0
+            ab[2, m] = u[m]
+        for i in range(p_shape):
+            src, dst = a_t[k - p_shape + i], ab[3 + i]
+            for m in range(n_beam):
+                dst[m] = src[m]
+        free2, s2_free, inv22, ok = _free_slope_k(ab, b[:n_beam], keep[:n_beam])
+        if not ok:
+            return 3, b, b, empty2, nan, nan, nan, nan, nan
+    return 0, coef, r, inv, infl, rho, free2, s2_free, inv22
+
+
+@kernel
+def _orthonormalise_k(
+    rows: NDArray[np.float64], n_first: int
+) -> tuple[NDArray[np.float64], int, int]:
+    """:func:`_orthonormalise`: the orthonormal rows (the first ``k`` of the result),
+    ``k``, and how many of the first ``n_first`` rows were kept."""
+    n_rows, n = rows.shape
+    q = np.empty((n_rows, n))
+    c = np.empty(n_rows)
+    t = np.empty(n)
+    k = 0
+    kept_first = 0
+    for i in range(n_rows):
+        v = rows[i]
+        norm0 = math.sqrt(_dot_k(v, v))
+        if norm0 == 0.0:
+            continue
+        for _ in range(2):
+            if k:
+                for j in range(k):
+                    c[j] = _dot_k(q[j], v)
+                t.fill(0.0)
+                for j in range(k):
+                    cj = c[j]
+                    for m in range(n):
+                        t[m] += cj * q[j, m]
+                for m in range(n):
+                    v[m] -= t[m]
+        norm = math.sqrt(_dot_k(v, v))
+        if norm <= 1e-9 * norm0:
+            continue
+        for m in range(n):
+            q[k, m] = v[m] / norm
+        k += 1
+        if i < n_first:
+            kept_first += 1
+    return q, k, kept_first
+
+
+@kernel
+def _basis_k(u: NDArray[np.float64], degree: int, out: NDArray[np.float64]) -> None:
+    """:func:`_basis_t` into ``out`` (degree - 1, N): numpy's Legendre recurrence on
+    ``x = 2 u - 1`` row by row, each row then times ``u^2`` (the same operations)."""
+    n = u.shape[0]
+    x, uu = np.empty(n), np.empty(n)
+    for m in range(n):
+        x[m] = 2.0 * u[m] - 1.0
+        uu[m] = u[m] * u[m]
+    leg = np.empty((degree - 1, n))  # the Legendre rows, unscaled
+    for i in range(degree - 1):
+        row = leg[i]
+        if i == 0:
+            for m in range(n):
+                row[m] = 1.0
+        elif i == 1:
+            for m in range(n):
+                row[m] = x[m]
         else:
-            sig[g] = 1.0
+            p1, p0 = leg[i - 1], leg[i - 2]
+            a, c = 2 * i - 1, i - 1
+            for m in range(n):
+                row[m] = (p1[m] * x[m] * a - p0[m] * c) / i
+        dst = out[i]
+        for m in range(n):
+            dst[m] = row[m] * uu[m]
+
+
+@kernel
+def _modes_k(
+    x: NDArray[np.float64],
+    beta: NDArray[np.float64],
+    sigma: NDArray[np.float64],
+    big: NDArray[np.float64],
+    derivative: int,
+) -> NDArray[np.float64]:
+    """:func:`cantilever_modes_t`, element by element: ``cosh(bx) - sigma sinh(bx)`` as
+    ``((1 - sigma) e^beta e^(bx - beta) + (1 + sigma) e^-bx) / 2``, with ``e^-bx`` as
+    ``e^-beta / e^(bx - beta)`` (one exponential a point, within 2 ulp of its own)."""
+    out = np.empty((beta.shape[0], x.shape[0]))
+    for i in range(beta.shape[0]):
+        bi, s, g = beta[i], sigma[i], big[i]
+        e_b = math.exp(-bi)
+        row = out[i]
+        for m in range(x.shape[0]):
+            bx = bi * x[m]
+            grow = math.exp(bx - bi)
+            decay = e_b / grow
+            c, sn = math.cos(bx), math.sin(bx)
+            if derivative == 0:
+                row[m] = 0.5 * (g * grow + (1 + s) * decay) - c + s * sn
+            else:
+                row[m] = bi * (0.5 * (g * grow - (1 + s) * decay) + sn + s * c)
+    return out
 
 
 #: Trapezoid samples along the centre line for arc lengths: the rule's error,
@@ -757,34 +1254,42 @@ def _fit_joint(
         # The modes give the linear theory's deflection, int theta; an edge point lies
         # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
         b[:n_beam] += modal.correction(a_all[:n_beam])
-    # The groups (the beam's edges, the hub's) as slices: views, not gathers.
-    groups = [slice(0, n_beam), slice(n_beam, n_all)] if use_hub else [slice(0, n_beam)]
-    # One buffer for the weighted design matrix of every solve below (the same products
-    # as ``a_t * w`` each time, without a fresh array of ~0.2 MB per solve).
-    aw = np.empty_like(a_t)
-    w = np.ones(n_all)
+    # The groups (the beam's edges, the hub's) by their ends; each group's scale and
+    # the inliers chosen in one kernel (:func:`_joint_k`).
+    ends = np.array([n_beam, n_all] if use_hub else [n_beam], dtype=np.int64)
+    # Where each row of the design matrix is not 0: the width and the shape on the
+    # beam's edges, the turn everywhere, each hub offset on its edge.
+    lo = np.zeros(n_coef, dtype=np.int64)
+    hi = np.full(n_coef, n_beam, dtype=np.int64)
+    hi[1] = n_all
+    if use_hub:
+        lo[2], hi[2] = n_beam, n_beam + len(hub_a)
+        lo[3], hi[3] = n_beam + len(hub_a), n_all
     keep = np.ones(n_all, dtype=bool)
     sig = np.ones(n_all)
     given = inliers is not None and len(inliers) == n_all
     if given:  # another fit's inliers: each group's scale from one fit to them
-        keep = np.asarray(inliers, dtype=bool).copy()
-        r = b - _wlstsq(a_t, b, keep.astype(np.float64), aw) @ a_t
-        _group_scales(r, groups, keep, sig)
-    for it in range(0 if given else 5):
-        coef = _wlstsq(a_t, b, w / sig**2, aw)
-        r = b - coef @ a_t
-        _group_scales(r, groups, None if it == 0 else keep, sig)
-        z = r / (TUKEY_C * sig)
-        inside = np.abs(z) < 1.0
-        w = np.where(inside, (1.0 - z * z) ** 2, 0.0)
-        if it >= 2 and bool((inside == keep).all()):
-            break
-        keep = inside
-    if keep[:nl].sum() < degree + 4 or keep[nl:n_beam].sum() < degree + 4:
+        keep = np.array(inliers, dtype=bool)
+    span_ends = [nl, n_beam] + ([n_beam + len(hub_a), n_all] if use_hub else [])
+    status, coef, r, gram_inv, infl, edge_rho, free2, s2_free, inv22 = _joint_k(
+        a_t,
+        lo,
+        hi,
+        b,
+        ends,
+        np.array(span_ends, dtype=np.int64),
+        keep,
+        given,
+        sig,
+        p_shape,
+        degree + 4,
+        u,
+    )
+    if status == 3:
+        raise np.linalg.LinAlgError("Singular matrix")
+    if status == 1:
         return "beam edges too ragged"
-    if use_hub and (
-        keep[n_beam : n_beam + len(hub_a)].sum() < 3 or keep[n_beam + len(hub_a) :].sum() < 3
-    ):  # the hub's edges are not straight lines: the beam's root alone
+    if status == 2:  # the hub's edges are not straight lines: the beam's root alone
         empty = np.zeros((0, 2))
         return _fit_joint(
             left,
@@ -797,25 +1302,10 @@ def _fit_joint(
             modal,
             edge_slope,
         )
-    # Final fit: the inliers, each group at its own variance (from its residuals).
-    wk = np.zeros(n_all)
-    r = b - _wlstsq(a_t, b, np.where(keep, 1.0 / sig**2, 0.0), aw) @ a_t
-    for g in groups:
-        kg = keep[g]
-        nk = int(np.count_nonzero(kg))
-        dof = max(nk - (p_shape + 2 if g.start == 0 else 2), 1)
-        v = float(np.sum(r[g][kg] ** 2)) / dof if nk else 1.0
-        wk[g][kg] = 1.0 / max(v, 1e-18)
-    np.multiply(a_t, wk, out=aw)
-    gram = aw @ a_t.T
-    coef = np.linalg.solve(gram, aw @ b)
-    r = b - coef @ a_t
-    spans = [(0, nl), (nl, n_beam)]
-    if use_hub:
-        spans += [(n_beam, n_beam + len(hub_a)), (n_beam + len(hub_a), n_all)]
-    span_res = [r[i:j][keep[i:j]] for i, j in spans]
-    infl = long_run_inflation_max(span_res)
-    cov = np.linalg.inv(gram) * infl
+    # With the inliers came the final fit (each group at its own variance, from its
+    # residuals), the largest long-run inflation over the edges' inlier residuals and
+    # the beam edges' largest lag-1 correlation.
+    cov = gram_inv * infl
     g_tip = np.zeros(n_coef)
     if modal is None:
         g_tip[n_coef - p_shape :] = _tip_gradient(degree)[2:]
@@ -837,27 +1327,15 @@ def _fit_joint(
 
     # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
     # free offset and a free slope at the root (not for a reference on another fit's
-    # inliers, whose root is that fit's to check). Its rows (width, offset, slope,
-    # shape) gathered to the inliers in one pass, from one array (a column-major gather:
-    # the products below then run in the order they always have).
+    # inliers, whose root is that fit's to check), fitted in :func:`_joint_k`: its rows
+    # (width, offset, slope, shape) over the beam's points, the outliers at weight 0.
     kb = keep[:n_beam]
     n_kb = int(np.count_nonzero(kb))
     yb = b[:n_beam][kb]
     slope, slope_sd = math.nan, math.nan
     if not given:
-        ab = np.empty((3 + p_shape, n_beam))
-        ab[0] = a_t[0, :n_beam]
-        ab[1] = 1.0
-        ab[2] = u
-        ab[3:] = a_t[n_coef - p_shape :, :n_beam]
-        abk = ab[:, kb]
-        gram_free = abk @ abk.T
-        free = np.linalg.solve(gram_free, abk @ yb)
-        slope = float(free[2]) / amax
-        res_free = yb - free @ abk
-        s2_free = float(res_free @ res_free) / max(n_kb - len(free), 1)
-        slope_var = float(np.linalg.inv(gram_free)[2, 2]) * s2_free * infl
-        slope_sd = math.sqrt(max(slope_var, 0.0)) / amax
+        slope = free2 / amax
+        slope_sd = math.sqrt(max(inv22 * s2_free * infl, 0.0)) / amax
     centre: CentreLine | ModalCentreLine
     if modal is None:
         centre = CentreLine(_to_power(degree).T @ coef[n_coef - p_shape :], amax)
@@ -874,7 +1352,7 @@ def _fit_joint(
         tip_sd=tip_sd,
         root_slope_rad=slope,
         root_slope_sd_rad=slope_sd,
-        edge_rho=max(lag1_correlation(x) for x in span_res[:2]),
+        edge_rho=edge_rho,
         outlier_fraction=1.0 - n_kb / n_beam,
         end_cov=end_cov,
     )
