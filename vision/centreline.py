@@ -36,7 +36,7 @@ from numpy.polynomial import polynomial as pw
 from numpy.typing import NDArray
 
 from vision.jit import kernel
-from vision.sampling import median
+from vision.sampling import median, median_in_place
 
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
 TUKEY_C = 4.685
@@ -632,47 +632,6 @@ def _wls_k(
 
 
 @kernel
-def _median_k(x: NDArray[np.float64]) -> float:
-    """:func:`vision.sampling.median` of ``x``, which it reorders (Wirth's selection: the
-    same order statistics, so the same value; NaN if ``x`` holds one or is empty)."""
-    n = x.shape[0]
-    if n == 0:
-        return np.nan
-    for m in range(n):
-        if x[m] != x[m]:
-            return np.nan
-    k = n // 2
-    lo, hi = 0, n - 1
-    while lo < hi:
-        pivot = x[k]
-        i, j = lo, hi
-        while True:
-            while x[i] < pivot:
-                i += 1
-            while pivot < x[j]:
-                j -= 1
-            if i <= j:
-                t = x[i]
-                x[i] = x[j]
-                x[j] = t
-                i += 1
-                j -= 1
-            if i > j:
-                break
-        if j < k:
-            lo = i
-        if k < i:
-            hi = j
-    if n % 2:
-        return x[k]
-    below = x[0]
-    for m in range(1, k):
-        if x[m] > below:
-            below = x[m]
-    return 0.5 * (below + x[k])
-
-
-@kernel
 def _group_scales_k(
     r: NDArray[np.float64],
     ends: NDArray[np.int64],
@@ -689,7 +648,7 @@ def _group_scales_k(
             if not use_keep or keep[m]:
                 buf[n] = abs(r[m])
                 n += 1
-        s = 1.4826 * _median_k(buf[:n]) + 1e-12 if n else 1.0
+        s = 1.4826 * median_in_place(buf[:n]) + 1e-12 if n else 1.0
         for m in range(start, end):
             sig[m] = s
         start = end

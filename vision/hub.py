@@ -23,7 +23,7 @@ from vision.centreline import correlation_inflation
 from vision.errors import FrameFailure
 from vision.jit import kernel
 from vision.locate import Rough, ToPx, _grid
-from vision.sampling import _bilinear, _median_of, _np_sum
+from vision.sampling import bilinear_points, median_in_place, numpy_sum
 
 
 def rough_axis(rough: Rough) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
@@ -147,7 +147,7 @@ def _hub_axis(
             r[i] = abs((ya[i] - mya) * c - (xa[i] - mxa) * s)
         for i in range(nb):
             r[na + i] = abs((yb[i] - myb) * c - (xb[i] - mxb) * s)
-        sig = 1.4826 * _median_of(r.copy()) + 1e-9
+        sig = 1.4826 * median_in_place(r.copy()) + 1e-9
         xa, ya = _kept(xa, ya, r[:na], 4 * sig)
         xb, yb = _kept(xb, yb, r[na:], 4 * sig)
         if xa.size < 3 or xb.size < 3:
@@ -299,7 +299,7 @@ def _end_edge(
     the other): the first moment (step k at k + 0.5) and the sum of the positive
     steps (bright to dark, from the lines' mean profile) within ``half`` steps of the
     largest; NaN, NaN when a sample is off the image (moment NaN: no positive step)."""
-    v = _bilinear(image, px)
+    v = bilinear_points(image, px)
     m = v.size // lines
     prof = np.zeros(m)
     for line in range(lines):
@@ -321,7 +321,7 @@ def _end_edge(
         step = prof[k] - prof[k + 1]
         d[k - lo] = step if step > 0 else 0.0
         dk[k - lo] = d[k - lo] * (k + 0.5)
-    total = _np_sum(d, d.size)  # numpy's sums (pairwise)
+    total = numpy_sum(d, d.size)  # numpy's sums (pairwise)
     if total <= 0.0:
         return math.nan, total
-    return _np_sum(dk, dk.size) / total, total
+    return numpy_sum(dk, dk.size) / total, total

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from vision.errors import FrameFailure
 from vision.jit import kernel
-from vision.sampling import BilinearPlan, _median_of, _np_sum, _select, bilinear, median
+from vision.sampling import BilinearPlan, bilinear, median, median_in_place, numpy_sum, select_kth
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -154,7 +154,7 @@ def _find_strip(
             if math.isfinite(v[i]):
                 kept[j] = v[i]
                 j += 1
-        fill = _median_of(kept)
+        fill = median_in_place(kept)
         v = v.copy()
         for i in range(n):
             if not math.isfinite(v[i]):
@@ -170,8 +170,8 @@ def _levels(v: NDArray[np.float64]) -> tuple[float, float]:
     n = v.size
     k1, k2 = int(0.2 * (n - 1)), int(0.98 * (n - 1))
     w = v.copy()
-    _select(w, k2, n)
-    _select(w, k1, k2 + 1)  # none of w[:k2] is above w[k2]
+    select_kth(w, k2, n)
+    select_kth(w, k1, k2 + 1)  # none of w[:k2] is above w[k2]
     return w[k1], w[k2]
 
 
@@ -384,7 +384,7 @@ def _circle_peaks(
             if math.isfinite(v[i]):
                 kept[j] = v[i]
                 j += 1
-        fill = _median_of(kept)
+        fill = median_in_place(kept)
         w = v.copy()
         for i in range(n):
             if not math.isfinite(v[i]):
@@ -402,7 +402,7 @@ def _circle_peaks(
     dv = np.empty(n - 1)
     for i in range(n - 1):
         dv[i] = abs(w[i + 1] - w[i])
-    noise = _median_of(dv) + 1.0
+    noise = median_in_place(dv) + 1.0
     thr = max(10.0, 5 * noise)
     # Each peak's half-maximum ends: the first samples either side at or below half
     # its height, at most a quarter of the circle away.
@@ -683,7 +683,7 @@ def _strip_end_at(v: NDArray[np.float64], inside: int) -> int:
         if not math.isfinite(w[i]):
             w[i] = low
     inside = min(inside, n)
-    thr = 0.5 * (_np_sum(w, inside) / inside + low)  # numpy's mean (pairwise sum)
+    thr = 0.5 * (numpy_sum(w, inside) / inside + low)  # numpy's mean (pairwise sum)
     for i in range(1, n):
         if w[i] < thr:
             return i

@@ -50,7 +50,7 @@ from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.jit import kernel
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import _median_of, bilinear, median, unit_step_gradient
+from vision.sampling import bilinear, median, median_in_place, unit_step_gradient
 
 log = logging.getLogger(__name__)
 
@@ -781,7 +781,7 @@ def _beam_frame_points(
     diff = np.empty(m)
     for i in range(m):
         diff[i] = ha[i, 1] - hb[i, 1]
-    return ha[:m], hb[:m], amax, _median_of(diff) < 0
+    return ha[:m], hb[:m], amax, median_in_place(diff) < 0
 
 
 def _background_slope(

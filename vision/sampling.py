@@ -25,11 +25,11 @@ def median(x: NDArray[np.float64], overwrite_input: bool = False) -> float:
 @kernel
 def _median(a: NDArray[np.float64], overwrite: bool) -> float:
     """:func:`median` of the contiguous ``a`` (selected in place with ``overwrite``)."""
-    return _median_of(a if overwrite else a.copy())
+    return median_in_place(a if overwrite else a.copy())
 
 
 @kernel
-def _median_of(w: NDArray[np.float64]) -> float:
+def median_in_place(w: NDArray[np.float64]) -> float:
     """:func:`median` of ``w``, selected in place: the middle order statistic, or the
     mean of the two (``0.5 * (lo + hi)``, numpy's). Kernels call this one: a literal
     argument (``_median(a, True)``) would compile another specialisation."""
@@ -40,7 +40,7 @@ def _median_of(w: NDArray[np.float64]) -> float:
         if w[i] != w[i]:
             return math.nan
     k = n // 2
-    _select(w, k, n)
+    select_kth(w, k, n)
     if n % 2:
         return w[k]
     lo = w[0]
@@ -51,7 +51,7 @@ def _median_of(w: NDArray[np.float64]) -> float:
 
 
 @kernel
-def _select(w: NDArray[np.float64], k: int, n: int) -> None:
+def select_kth(w: NDArray[np.float64], k: int, n: int) -> None:
     """Partition ``w[:n]`` (no NaN) about its ``k``-th smallest value, in place: ``w[k]``
     is that value, none before it is larger, none after it (to ``n``) smaller (Hoare's
     quickselect, median-of-three pivot)."""
@@ -82,7 +82,7 @@ def _select(w: NDArray[np.float64], k: int, n: int) -> None:
 
 
 @kernel
-def _np_sum(a: NDArray[np.float64], n: int) -> float:
+def numpy_sum(a: NDArray[np.float64], n: int) -> float:
     """``a[:n].sum()`` as numpy sums a contiguous float64 array, bit for bit: halves
     (each a multiple of 8 where it can be) down to blocks of at most 128, each summed
     eight ways, the halves' sums added up the tree. Walked with a stack, not recursion:
@@ -157,12 +157,12 @@ def unit_step_gradient(x: NDArray[np.float64]) -> NDArray[np.float64]:
 def bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
     """Bilinear samples of a [row, col] image at points (N, 2) (x, y); NaN off the image."""
     xy = np.asarray(xy, dtype=np.float64)
-    out = _bilinear(np.ascontiguousarray(image), np.ascontiguousarray(xy).reshape(-1, 2))
+    out = bilinear_points(np.ascontiguousarray(image), np.ascontiguousarray(xy).reshape(-1, 2))
     return out.reshape(xy.shape[:-1])
 
 
 @kernel
-def _bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
+def bilinear_points(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`bilinear` of points (N, 2): the cell's corner at the truncated point (one
     cell in from the last row and column), interpolated along x on its top and bottom
     rows, then along y between them."""
@@ -200,4 +200,4 @@ class BilinearPlan:
             raise ParameterError(
                 "image", f"must have the plan's shape {self.shape}, got {image.shape}"
             )
-        return _bilinear(np.ascontiguousarray(image), self.xy)
+        return bilinear_points(np.ascontiguousarray(image), self.xy)

@@ -169,25 +169,6 @@ def test_basis_kernel_is_numpys_legendre_recurrence_exactly() -> None:
             np.testing.assert_array_equal(cl._basis_t(u, degree), _basis_t_ref(u, degree))
 
 
-@pytest.mark.parametrize("n", [0, 1, 2, 3, 4, 5, 10, 11, 64, 1001, 1650])
-def test_median_kernel_is_the_median_exactly(n: int) -> None:
-    rng = np.random.default_rng(n)
-    for x in (
-        rng.standard_normal(n),
-        np.round(rng.standard_normal(n), 1),  # ties
-        np.sort(rng.standard_normal(n)),  # sorted
-        np.sort(rng.standard_normal(n))[::-1].copy(),  # reversed
-        np.full(n, 0.25),  # all equal
-    ):
-        got = cl._median_k(x.copy())
-        want = float(np.median(x)) if n else math.nan
-        assert got == want or (math.isnan(got) and math.isnan(want)), (n, got, want)
-    if n:
-        x = rng.standard_normal(n)
-        x[n // 3] = math.nan
-        assert math.isnan(cl._median_k(x))
-
-
 def test_lu_kernels_solve_and_invert_as_numpy_does() -> None:
     rng = np.random.default_rng(5)
     for k in (1, 2, 6, 11):

@@ -4,12 +4,14 @@ statistic, or numpy's mean of two)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from tests.vision.sampling_numpy import bilinear_numpy
 from vision.errors import ParameterError
-from vision.sampling import BilinearPlan, _np_sum, bilinear, median
+from vision.sampling import BilinearPlan, bilinear, median, median_in_place, numpy_sum
 
 
 def test_bilinear_is_the_numpy_form_bit_for_bit() -> None:
@@ -58,4 +60,23 @@ def test_the_kernels_sum_is_numpys_bit_for_bit() -> None:
         x = rng.normal(size=n) * 10 ** rng.uniform(-3, 3)
         lo = int(rng.integers(0, 5))
         y = np.concatenate([rng.normal(size=lo), x])
-        assert _np_sum(y[lo:], n) == x.sum(), n
+        assert numpy_sum(y[lo:], n) == x.sum(), n
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 4, 5, 10, 11, 64, 1001, 1650])
+def test_median_in_place_is_numpys_median_on_sorted_reversed_and_equal_values(n: int) -> None:
+    rng = np.random.default_rng(n)
+    for x in (
+        rng.standard_normal(n),
+        np.round(rng.standard_normal(n), 1),  # ties
+        np.sort(rng.standard_normal(n)),  # sorted
+        np.sort(rng.standard_normal(n))[::-1].copy(),  # reversed
+        np.full(n, 0.25),  # all equal
+    ):
+        got = median_in_place(x.copy())
+        want = float(np.median(x)) if n else math.nan
+        assert got == want or (math.isnan(got) and math.isnan(want)), (n, got, want)
+    if n:
+        x = rng.standard_normal(n)
+        x[n // 3] = math.nan
+        assert math.isnan(median_in_place(x))
