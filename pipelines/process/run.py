@@ -55,6 +55,7 @@ from sim.trace_fit import FittedTraceDrive
 from vision import Calibration, calibration_from_registration, decode, load_calibration
 from vision.calibration import check_points_in_image
 from vision.calibration_error import point_covariance
+from vision.jit import cached as kernels_cached
 
 log = logging.getLogger(__name__)
 
@@ -401,7 +402,9 @@ def _process_run(
         )
         t0 = time.perf_counter()
         stations = tuple(float(x) for x in rig.gauges.positions_m)
-        with Progress("measure", total=run.frame_count) as bar:
+        # a fresh kernel cache: the first frames wait ~25 s for numba's compile; say so
+        label = "measure" if kernels_cached() else "measure (compiling, first run: ~25 s)"
+        with Progress(label, total=run.frame_count) as bar:
             frames = measure_frames(
                 iter_frames(log_path),
                 calibration,
