@@ -31,8 +31,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
-from scipy.stats import chi2
 
 from vision.homography import apply_homography
 
@@ -320,6 +318,10 @@ def fit_lines(
     def res_pose(v: NDArray[np.float64]) -> NDArray[np.float64]:
         return line_distances_px(pose_homography(v, k), pts, idx, lines)
 
+    # imported here: a frame worker loads vision but never fits a pose (scipy.optimize
+    # and scipy.stats were ~0.7 s of its start-up)
+    from scipy.optimize import least_squares
+
     x0 = pose_from_homography(h_free, k)
     sol = least_squares(res_pose, x0, method="lm", x_scale="jac")
     x = sol.x
@@ -334,7 +336,7 @@ def fit_lines(
     # that of the difference).
     diff = pose_homography(x, k).ravel()[:8] - x_free
     excess = float(diff @ np.linalg.pinv(free_cov.params) @ diff)
-    limit = float(chi2.isf(CONSISTENCY_P, 2))
+    limit = -2.0 * math.log(CONSISTENCY_P)  # chi-squared, 2 dof: sf(x) = exp(-x / 2)
     if not excess <= limit:
         note = (
             f"the registration's edges do not fit a plane seen through the stated camera "
