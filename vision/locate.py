@@ -135,6 +135,24 @@ def find_strip(
 
 
 @kernel
+def _nan_filled(v: NDArray[np.float64], finite: int) -> NDArray[np.float64]:
+    """A copy of ``v`` (``finite`` of its samples finite, at least one) whose other
+    samples are the finite ones' median (a profile or a circle partly off the image)."""
+    kept = np.empty(finite)
+    j = 0
+    for i in range(v.size):
+        if math.isfinite(v[i]):
+            kept[j] = v[i]
+            j += 1
+    fill = median_in_place(kept)
+    w = v.copy()
+    for i in range(v.size):
+        if not math.isfinite(v[i]):
+            w[i] = fill
+    return w
+
+
+@kernel
 def _find_strip(
     v: NDArray[np.float64], offs: NDArray[np.float64], step: float, expect: float, near: float
 ) -> tuple[bool, float, float, float]:
@@ -148,17 +166,7 @@ def _find_strip(
     if finite < 0.7 * n:
         return False, math.nan, math.nan, math.nan
     if finite < n:
-        kept = np.empty(finite)
-        j = 0
-        for i in range(n):
-            if math.isfinite(v[i]):
-                kept[j] = v[i]
-                j += 1
-        fill = median_in_place(kept)
-        v = v.copy()
-        for i in range(n):
-            if not math.isfinite(v[i]):
-                v[i] = fill
+        v = _nan_filled(v, finite)
     lo, hi = _levels(v)
     return _strip(v, offs, step, expect, near, lo, hi)
 
@@ -378,17 +386,7 @@ def _circle_peaks(
     if finite < n:
         if finite < 10:
             return np.empty((0, 5))
-        kept = np.empty(finite)
-        j = 0
-        for i in range(n):
-            if math.isfinite(v[i]):
-                kept[j] = v[i]
-                j += 1
-        fill = median_in_place(kept)
-        w = v.copy()
-        for i in range(n):
-            if not math.isfinite(v[i]):
-                w[i] = fill
+        w = _nan_filled(v, finite)
     # Top-hat: brightness above the local floor over k samples, a grey opening of the
     # smoothed samples (erosion, then dilation with the flat element mirrored: origin -1
     # for an even size), all as scipy.ndimage's 1-D filters compute them, around the
