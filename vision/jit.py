@@ -53,7 +53,9 @@ def kernel(fn: F) -> F:
         if where is not None:
             # read by numba's cache locator when caching is enabled, i.e. inside njit()
             _config.CACHE_DIR = str(where)
-        compiled = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+        # nowhere writable (a read-only install and home): compiled in each process, since
+        # numba's own cache places would be the same unwritable ones, and it refuses then
+        compiled = numba.njit(cache=where is not None, nogil=True, error_model="numpy")(fn)
     finally:
         _config.CACHE_DIR = saved
     return cast(F, compiled)
@@ -83,7 +85,7 @@ def cache_dir(package: Path) -> Path | None:
     """Where the kernels of ``package`` (a directory of sources) are cached: a directory
     named by :func:`sources_digest`, in the first writable place of ``__pycache__``
     beside the sources, ``$NUMBA_CACHE_DIR``, the user's cache directory; None when none
-    is writable (numba then finds its own place or compiles without caching)."""
+    is writable (the kernels are then compiled in each process, not cached)."""
     name = _PREFIX + sources_digest(package)
     user = os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache")
     places = [package / "__pycache__"]

@@ -115,3 +115,18 @@ def test_old_caches_are_pruned(tmp_path: Path) -> None:
     left = sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("kernels-"))
     assert left == [f"kernels-{i:016x}" for i in range(3, KEEP_CACHES + 3)]
     assert (tmp_path / "other").is_dir()
+
+
+def test_nowhere_writable_compiles_without_a_cache(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a read-only install and home: numba's cache=True would refuse at import time
+    # ("no locator available"); the kernel is compiled for this process instead
+    import vision.jit as jit
+
+    monkeypatch.setattr(jit, "cache_dir", lambda package: None)
+
+    def twice(x):  # type: ignore[no-untyped-def]
+        return 2.0 * x
+
+    compiled = jit.kernel(twice)
+    assert compiled(1.5) == 3.0
+    assert type(compiled._cache).__name__ == "NullCache"  # numba's: nothing written
