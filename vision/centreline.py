@@ -1183,100 +1183,89 @@ def _fit_joint(
     edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
     inliers: NDArray[np.bool_] | None = None,
 ) -> JointFit | str:
-    """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space."""
+    """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space:
+    the shapes, the edges' slope and the modes' correction at the beam's points here,
+    the design, the fit and its statistics in one kernel (:func:`_fit_joint_k`)."""
     nl, nr = len(left), len(right)
-    nh = len(hub_a) + len(hub_b)
     use_hub = len(hub_a) >= 5 and len(hub_b) >= 5
     if not use_hub:
-        hub_a, hub_b, nh = np.zeros((0, 2)), np.zeros((0, 2)), 0
-    p_shape = degree - 1 if modal is None else modal.n
-    n_beam = nl + nr
+        hub_a = hub_b = _NO_POINTS
     if min(nl, nr) < degree + 4:
         return "beam edges too ragged"
-    a_all = np.concatenate([left[:, 0], right[:, 0], hub_a[:, 0], hub_b[:, 0]])
-    b = np.concatenate([left[:, 1], right[:, 1], hub_a[:, 1], hub_b[:, 1]])
-    n_all = n_beam + nh
-    n_coef = 2 + (2 if use_hub else 0) + p_shape
-    a_t = np.zeros((n_coef, n_all))
-    a_t[0, :nl], a_t[0, nl:n_beam] = 0.5, -0.5  # width
-    if edge_slope is not None:  # half the width along the normal: 1 / cos(theta) across
-        a_t[0, :n_beam] *= np.sqrt(1.0 + np.asarray(edge_slope(a_all[:n_beam])) ** 2)
-    a_t[1] = a_all + clamp_from_pivot  # the axis's turn
-    if use_hub:
-        a_t[2, n_beam : n_beam + len(hub_a)] = 1.0
-        a_t[3, n_beam + len(hub_a) :] = 1.0
-    u = a_all[:n_beam] / amax
+    a_beam = np.concatenate([left[:, 0], right[:, 0]])
+    n_beam = nl + nr
+    n_all = n_beam + len(hub_a) + len(hub_b)
+    given = inliers is not None and len(inliers) == n_all
+    keep = np.array(inliers, dtype=bool) if given else np.ones(n_all, dtype=bool)
     if modal is None:
-        a_t[n_coef - p_shape :, :n_beam] = _basis_t(u, degree)
+        shape = _basis_t(a_beam / amax, degree)
+        corr, extra, g_shape = _NO_VALUES, _NO_ROWS, _tip_gradient(degree)[2:]
     else:
-        a_t[n_coef - p_shape :, :n_beam] = modal.basis_t(a_all[:n_beam])
+        shape = modal.basis_t(a_beam)
         # The modes give the linear theory's deflection, int theta; an edge point lies
         # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
-        b[:n_beam] += modal.correction(a_all[:n_beam])
-    # The groups (the beam's edges, the hub's) by their ends; each group's scale and
-    # the inliers chosen in one kernel (:func:`_joint_k`).
-    ends = np.array([n_beam, n_all] if use_hub else [n_beam], dtype=np.int64)
-    # Where each row of the design matrix is not 0: the width and the shape on the
-    # beam's edges, the turn everywhere, each hub offset on its edge.
-    lo = np.zeros(n_coef, dtype=np.int64)
-    hi = np.full(n_coef, n_beam, dtype=np.int64)
-    hi[1] = n_all
-    if use_hub:
-        lo[2], hi[2] = n_beam, n_beam + len(hub_a)
-        lo[3], hi[3] = n_beam + len(hub_a), n_all
-    keep = np.ones(n_all, dtype=bool)
-    sig = np.ones(n_all)
-    given = inliers is not None and len(inliers) == n_all
-    if given:  # another fit's inliers: each group's scale from one fit to them
-        keep = np.array(inliers, dtype=bool)
-    span_ends = [nl, n_beam] + ([n_beam + len(hub_a), n_all] if use_hub else [])
-    status, coef, r, gram_inv, infl, edge_rho, free2, s2_free, inv22 = _joint_k(
-        a_t,
-        lo,
-        hi,
-        b,
-        ends,
-        np.array(span_ends, dtype=np.int64),
+        corr = _NO_VALUES if modal.along is None else modal.correction(a_beam)
+        # the shape test's extra shapes (none for a reference on another fit's inliers)
+        extra = _NO_ROWS if given else _basis_t(a_beam / amax, degree)
+        g_shape = modal.basis_t(np.array([amax]))[:, 0]
+    # Half the width along the normal: 1 / cos(theta) across the axis.
+    slope = _NO_VALUES if edge_slope is None else np.asarray(edge_slope(a_beam), dtype=np.float64)
+    (
+        status,
+        coef,
+        cov,
+        tip_sd,
+        n_kb,
+        rms,
+        hub_rms,
+        free2,
+        s2_free,
+        inv22,
+        infl,
+        edge_rho,
+        shape_chi2,
+        shape_dof,
+    ) = _fit_joint_k(
+        np.ascontiguousarray(left, dtype=np.float64),
+        np.ascontiguousarray(right, dtype=np.float64),
+        np.ascontiguousarray(hub_a, dtype=np.float64),
+        np.ascontiguousarray(hub_b, dtype=np.float64),
+        float(clamp_from_pivot),
+        float(amax),
+        shape,
+        np.ascontiguousarray(slope),
+        corr,
         keep,
         given,
-        sig,
-        p_shape,
         degree + 4,
-        u,
+        extra,
+        np.ascontiguousarray(g_shape, dtype=np.float64),
     )
     if status == 3:
         raise np.linalg.LinAlgError("Singular matrix")
     if status == 1:
         return "beam edges too ragged"
     if status == 2:  # the hub's edges are not straight lines: the beam's root alone
-        empty = np.zeros((0, 2))
         return _fit_joint(
             left,
             right,
-            empty,
-            empty,
+            _NO_POINTS,
+            _NO_POINTS,
             degree,
             amax,
             clamp_from_pivot,
             modal,
             edge_slope,
         )
-    # With the inliers came the final fit (each group at its own variance, from its
-    # residuals), the largest long-run inflation over the edges' inlier residuals and
-    # the beam edges' largest lag-1 correlation.
-    cov = gram_inv * infl
-    g_tip = np.zeros(n_coef)
-    if modal is None:
-        g_tip[n_coef - p_shape :] = _tip_gradient(degree)[2:]
-    else:
-        g_tip[n_coef - p_shape :] = modal.basis_t(np.array([amax]))[:, 0]
-    tip_sd = math.sqrt(max(float(g_tip @ cov @ g_tip), 0.0))
+    n_coef = len(coef)
+    p_shape = len(g_shape)
 
     def end_cov() -> tuple[float, float]:
         # The slope at a_max, by a difference of the shape functions (a step of 1e-6 of
         # the beam: the difference's own error ~1e-10 of the slope).
         h = 1e-6 * amax
-        g_in = np.zeros(n_coef)
+        g_tip, g_in = np.zeros(n_coef), np.zeros(n_coef)
+        g_tip[n_coef - p_shape :] = g_shape
         if modal is None:
             g_in[n_coef - p_shape :] = _basis(np.array([1.0 - h / amax]), degree)[0]
         else:
@@ -1284,65 +1273,34 @@ def _fit_joint(
         g_slope = (g_tip - g_in) / h
         return float(g_tip @ cov @ g_slope), float(g_slope @ cov @ g_slope)
 
-    # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
-    # free offset and a free slope at the root (not for a reference on another fit's
-    # inliers, whose root is that fit's to check), fitted in :func:`_joint_k`: its rows
-    # (width, offset, slope, shape) over the beam's points, the outliers at weight 0.
-    kb = keep[:n_beam]
-    n_kb = int(np.count_nonzero(kb))
-    yb = b[:n_beam][kb]
-    slope, slope_sd = math.nan, math.nan
+    # The clamped prior's check (not for a reference on another fit's inliers, whose
+    # root is that fit's to check): the free root slope from the kernel.
+    slope_rad, slope_sd = math.nan, math.nan
     if not given:
-        slope = free2 / amax
+        slope_rad = free2 / amax
         slope_sd = math.sqrt(max(inv22 * s2_free * infl, 0.0)) / amax
     centre: CentreLine | ModalCentreLine
     if modal is None:
         centre = CentreLine(_to_power(degree).T @ coef[n_coef - p_shape :], amax)
     else:
         centre = modal.centre(coef[n_coef - p_shape :])
-    rb = r[:n_beam][kb]
     fit = CentreFit(
         centre=centre,
         left=left[keep[:nl]],
         right=right[keep[nl:n_beam]],
         width=float(coef[0]),
-        # np.mean's sum and division, without its dispatch
-        rms=math.sqrt(float(np.add.reduce(rb * rb)) / len(rb)),
+        rms=rms,
         tip_sd=tip_sd,
-        root_slope_rad=slope,
+        root_slope_rad=slope_rad,
         root_slope_sd_rad=slope_sd,
         edge_rho=edge_rho,
         outlier_fraction=1.0 - n_kb / n_beam,
         end_cov=end_cov,
     )
-    shape_chi2, shape_dof = math.nan, 0
-    if modal is not None and not given:  # a reference on another fit's inliers: none
-        # The modes against the modes and the polynomial together, on the beam's inliers
-        # (its own width, turn and shape): the residual's components along the extra
-        # shapes, orthonormalised against the modes', are independent N(0, sigma^2)
-        # when the modes hold the shape, however near the two spaces lie.
-        # The rows gathered row-major: each row's products then run over contiguous
-        # memory (half the time of the column-major gather's strided rows; the same
-        # algorithm, its rounding in another order).
-        n_m = 2 + p_shape
-        x = np.empty((n_m + degree - 1, n_beam))
-        x[0] = a_t[0, :n_beam]
-        x[1] = a_t[1, :n_beam]
-        x[2:n_m] = a_t[n_coef - p_shape :, :n_beam]
-        _basis_t(u, degree, out=x[n_m:])
-        q, n_m = _orthonormalise(x.compress(kb, axis=1), n_m)
-        proj = q @ yb
-        extra = proj[n_m:]
-        shape_dof = len(extra)
-        rss_u = float(yb @ yb - proj @ proj)
-        s2_u = max(rss_u, 1e-30) / max(n_kb - len(q), 1)
-        shape_chi2 = float(extra @ extra) / (s2_u * infl)
     if use_hub:
-        rh = r[n_beam:][keep[n_beam:]]
         hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
-        hub_rms = math.sqrt(float(np.add.reduce(rh * rh)) / len(rh))
     else:
-        hub, hub_rms = (math.nan, math.nan), math.nan
+        hub = (math.nan, math.nan)
     return JointFit(
         rotation_rad=float(coef[1]),
         rotation_sd_rad=math.sqrt(max(float(cov[1, 1]), 0.0)),
@@ -1353,4 +1311,191 @@ def _fit_joint(
         shape_chi2=shape_chi2,
         shape_dof=shape_dof,
         inliers=keep,
+    )
+
+
+#: Empties for :func:`_fit_joint`: no points, no values, no rows (writable, as every
+#: array its kernel is given: one compiled form).
+_NO_POINTS = np.zeros((0, 2))
+_NO_VALUES = np.zeros(0)
+_NO_ROWS = np.zeros((0, 0))
+
+
+@kernel
+def _fit_joint_k(
+    left: NDArray[np.float64],
+    right: NDArray[np.float64],
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    clamp_from_pivot: float,
+    amax: float,
+    shape: NDArray[np.float64],
+    slope: NDArray[np.float64],
+    corr: NDArray[np.float64],
+    keep: NDArray[np.bool_],
+    given: bool,
+    min_edge: int,
+    extra: NDArray[np.float64],
+    g_shape: NDArray[np.float64],
+) -> tuple[
+    int,
+    NDArray[np.float64],
+    NDArray[np.float64],
+    float,
+    int,
+    float,
+    float,
+    float,
+    float,
+    float,
+    float,
+    float,
+    float,
+    int,
+]:
+    """:func:`_fit_joint`'s design and arithmetic: the design matrix transposed (the
+    width's row ``+-1/2 sqrt(1 + slope^2)`` on the beam's edges, the turn's ``a +
+    clamp_from_pivot`` everywhere, the hub edges' offsets (none when ``hub_a`` is
+    empty), the ``shape`` rows on the beam's edges) and the data (``b``, plus ``corr`` on
+    the beam's edges; ``slope``, ``corr`` empty: none), fitted by :func:`_joint_k`
+    (``keep``: the inliers, another fit's when ``given``, written in place); then the
+    covariance ``gram^-1 infl``, the tip's standard uncertainty along the shape
+    gradient ``g_shape``, the beam's inliers' count and RMS residual, the hub's, and,
+    when ``extra`` has rows and the inliers were not given, the shape test: the beam's
+    inliers' residual sum of squares that the ``extra`` shapes remove beyond the width,
+    turn and shape rows, orthonormalised (:func:`_orthonormalise_k`), over the residual
+    variance times ``infl``, and its degrees of freedom. Returns (status of
+    :func:`_joint_k`, coefficients, covariance, tip sd, inliers on the beam,
+    beam RMS, hub RMS (NaN: no hub), free slope's coefficient, residual variance and
+    inverse-normal element, inflation, lag-1 correlation, shape chi-squared (NaN: no
+    test), its degrees of freedom)."""
+    nl, nr = left.shape[0], right.shape[0]
+    n_beam = nl + nr
+    n_ha, n_hb = hub_a.shape[0], hub_b.shape[0]
+    use_hub = n_ha > 0
+    n_all = n_beam + n_ha + n_hb
+    p_shape = shape.shape[0]
+    n_coef = (4 if use_hub else 2) + p_shape
+    first = n_coef - p_shape
+    a_t = np.zeros((n_coef, n_all))
+    b = np.empty(n_all)
+    u = np.empty(n_beam)
+    for m in range(n_all):
+        if m < nl:
+            a, y = left[m, 0], left[m, 1]
+        elif m < n_beam:
+            a, y = right[m - nl, 0], right[m - nl, 1]
+        elif m < n_beam + n_ha:
+            a, y = hub_a[m - n_beam, 0], hub_a[m - n_beam, 1]
+        else:
+            a, y = hub_b[m - n_beam - n_ha, 0], hub_b[m - n_beam - n_ha, 1]
+        a_t[1, m] = a + clamp_from_pivot
+        b[m] = y
+        if m < n_beam:
+            u[m] = a / amax
+            w = 0.5 if m < nl else -0.5
+            if slope.shape[0]:
+                w *= math.sqrt(1.0 + slope[m] * slope[m])
+            a_t[0, m] = w
+            if corr.shape[0]:
+                b[m] += corr[m]
+    for i in range(p_shape):
+        src, dst = shape[i], a_t[first + i]
+        for m in range(n_beam):
+            dst[m] = src[m]
+    lo = np.zeros(n_coef, dtype=np.int64)
+    hi = np.full(n_coef, n_beam, dtype=np.int64)
+    hi[1] = n_all
+    ends = np.empty(2 if use_hub else 1, dtype=np.int64)
+    span_ends = np.empty(4 if use_hub else 2, dtype=np.int64)
+    ends[0] = n_beam
+    span_ends[0], span_ends[1] = nl, n_beam
+    if use_hub:
+        for m in range(n_beam, n_beam + n_ha):
+            a_t[2, m] = 1.0
+        for m in range(n_beam + n_ha, n_all):
+            a_t[3, m] = 1.0
+        lo[2], hi[2] = n_beam, n_beam + n_ha
+        lo[3], hi[3] = n_beam + n_ha, n_all
+        ends[1] = n_all
+        span_ends[2], span_ends[3] = n_beam + n_ha, n_all
+    sig = np.ones(n_all)
+    nan = np.nan
+    status, coef, r, gram_inv, infl, rho, free2, s2_free, inv22 = _joint_k(
+        a_t, lo, hi, b, ends, span_ends, keep, given, sig, p_shape, min_edge, u
+    )
+    if status != 0:
+        return status, coef, gram_inv, nan, 0, nan, nan, nan, nan, nan, nan, nan, nan, 0
+    cov = gram_inv * infl
+    # g cov g over the shape's block (the tip gradient is 0 on the other coefficients)
+    tip_var = 0.0
+    for i in range(p_shape):
+        s = 0.0
+        for j in range(p_shape):
+            s += g_shape[j] * cov[first + j, first + i]
+        tip_var += s * g_shape[i]
+    n_kb = 0
+    ss = 0.0
+    for m in range(n_beam):
+        if keep[m]:
+            n_kb += 1
+            ss += r[m] * r[m]
+    rms = math.sqrt(ss / n_kb)
+    hub_rms = nan
+    if use_hub:
+        n_kh = 0
+        ss = 0.0
+        for m in range(n_beam, n_all):
+            if keep[m]:
+                n_kh += 1
+                ss += r[m] * r[m]
+        hub_rms = math.sqrt(ss / n_kh)
+    chi2, dof = nan, 0
+    n_extra = extra.shape[0]
+    if n_extra and not given:
+        # The modes against the modes and the polynomial together, on the beam's
+        # inliers (its own width, turn and shape): the residual's components along the
+        # extra shapes, orthonormalised against the modes', are independent
+        # N(0, sigma^2) when the modes hold the shape, however near the two spaces lie.
+        n_m = 2 + p_shape
+        x = np.empty((n_m + n_extra, n_kb))
+        yb = np.empty(n_kb)
+        j = 0
+        for m in range(n_beam):
+            if keep[m]:
+                x[0, j] = a_t[0, m]
+                x[1, j] = a_t[1, m]
+                for i in range(p_shape):
+                    x[2 + i, j] = a_t[first + i, m]
+                for i in range(n_extra):
+                    x[n_m + i, j] = extra[i, m]
+                yb[j] = b[m]
+                j += 1
+        q, k, kept_first = _orthonormalise_k(x, n_m)
+        proj_ss = 0.0
+        extra_ss = 0.0
+        for i in range(k):
+            p = _dot_k(q[i], yb)
+            proj_ss += p * p
+            if i >= kept_first:
+                extra_ss += p * p
+        dof = k - kept_first
+        rss_u = _dot_k(yb, yb) - proj_ss
+        s2_u = max(rss_u, 1e-30) / max(n_kb - k, 1)
+        chi2 = extra_ss / (s2_u * infl)
+    return (
+        0,
+        coef,
+        cov,
+        math.sqrt(max(tip_var, 0.0)),
+        n_kb,
+        rms,
+        hub_rms,
+        free2,
+        s2_free,
+        inv22,
+        infl,
+        rho,
+        chi2,
+        dof,
     )

@@ -10,6 +10,7 @@ Medians, selections and the inliers are decisions: equal exactly."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -360,3 +361,268 @@ def test_given_inliers_that_leave_a_hub_edge_two_points_fit_without_the_hub() ->
     assert math.isnan(with_hub.hub_width) and math.isnan(without.hub_width)
     assert with_hub.rotation_rad == without.rotation_rad
     assert with_hub.fit.tip_sd == without.fit.tip_sd
+
+
+# -- the joint fit's glue: the numpy form around the kernel (the reference) -------------
+def _fit_joint_ref(
+    left: NDArray[np.float64],
+    right: NDArray[np.float64],
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    degree: int,
+    amax: float,
+    clamp_from_pivot: float,
+    modal: cl._Modes | None,
+    edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+    inliers: NDArray[np.bool_] | None = None,
+) -> cl.JointFit | str:
+    """cl._fit_joint as it was in numpy around the kernel (the reference)."""
+    nl, nr = len(left), len(right)
+    nh = len(hub_a) + len(hub_b)
+    use_hub = len(hub_a) >= 5 and len(hub_b) >= 5
+    if not use_hub:
+        hub_a, hub_b, nh = np.zeros((0, 2)), np.zeros((0, 2)), 0
+    p_shape = degree - 1 if modal is None else modal.n
+    n_beam = nl + nr
+    if min(nl, nr) < degree + 4:
+        return "beam edges too ragged"
+    a_all = np.concatenate([left[:, 0], right[:, 0], hub_a[:, 0], hub_b[:, 0]])
+    b = np.concatenate([left[:, 1], right[:, 1], hub_a[:, 1], hub_b[:, 1]])
+    n_all = n_beam + nh
+    n_coef = 2 + (2 if use_hub else 0) + p_shape
+    a_t = np.zeros((n_coef, n_all))
+    a_t[0, :nl], a_t[0, nl:n_beam] = 0.5, -0.5  # width
+    if edge_slope is not None:  # half the width along the normal: 1 / cos(theta) across
+        a_t[0, :n_beam] *= np.sqrt(1.0 + np.asarray(edge_slope(a_all[:n_beam])) ** 2)
+    a_t[1] = a_all + clamp_from_pivot  # the axis's turn
+    if use_hub:
+        a_t[2, n_beam : n_beam + len(hub_a)] = 1.0
+        a_t[3, n_beam + len(hub_a) :] = 1.0
+    u = a_all[:n_beam] / amax
+    if modal is None:
+        a_t[n_coef - p_shape :, :n_beam] = cl._basis_t(u, degree)
+    else:
+        a_t[n_coef - p_shape :, :n_beam] = modal.basis_t(a_all[:n_beam])
+        # The modes give the linear theory's deflection, int theta; an edge point lies
+        # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
+        b[:n_beam] += modal.correction(a_all[:n_beam])
+    # The groups (the beam's edges, the hub's) by their ends; each group's scale and
+    # the inliers chosen in one kernel (:func:`_joint_k`).
+    ends = np.array([n_beam, n_all] if use_hub else [n_beam], dtype=np.int64)
+    # Where each row of the design matrix is not 0: the width and the shape on the
+    # beam's edges, the turn everywhere, each hub offset on its edge.
+    lo = np.zeros(n_coef, dtype=np.int64)
+    hi = np.full(n_coef, n_beam, dtype=np.int64)
+    hi[1] = n_all
+    if use_hub:
+        lo[2], hi[2] = n_beam, n_beam + len(hub_a)
+        lo[3], hi[3] = n_beam + len(hub_a), n_all
+    keep = np.ones(n_all, dtype=bool)
+    sig = np.ones(n_all)
+    given = inliers is not None and len(inliers) == n_all
+    if given:  # another fit's inliers: each group's scale from one fit to them
+        keep = np.array(inliers, dtype=bool)
+    span_ends = [nl, n_beam] + ([n_beam + len(hub_a), n_all] if use_hub else [])
+    status, coef, r, gram_inv, infl, edge_rho, free2, s2_free, inv22 = cl._joint_k(
+        a_t,
+        lo,
+        hi,
+        b,
+        ends,
+        np.array(span_ends, dtype=np.int64),
+        keep,
+        given,
+        sig,
+        p_shape,
+        degree + 4,
+        u,
+    )
+    if status == 3:
+        raise np.linalg.LinAlgError("Singular matrix")
+    if status == 1:
+        return "beam edges too ragged"
+    if status == 2:  # the hub's edges are not straight lines: the beam's root alone
+        empty = np.zeros((0, 2))
+        return _fit_joint_ref(
+            left,
+            right,
+            empty,
+            empty,
+            degree,
+            amax,
+            clamp_from_pivot,
+            modal,
+            edge_slope,
+        )
+    # With the inliers came the final fit (each group at its own variance, from its
+    # residuals), the largest long-run inflation over the edges' inlier residuals and
+    # the beam edges' largest lag-1 correlation.
+    cov = gram_inv * infl
+    g_tip = np.zeros(n_coef)
+    if modal is None:
+        g_tip[n_coef - p_shape :] = cl._tip_gradient(degree)[2:]
+    else:
+        g_tip[n_coef - p_shape :] = modal.basis_t(np.array([amax]))[:, 0]
+    tip_sd = math.sqrt(max(float(g_tip @ cov @ g_tip), 0.0))
+
+    def end_cov() -> tuple[float, float]:
+        # The slope at a_max, by a difference of the shape functions (a step of 1e-6 of
+        # the beam: the difference's own error ~1e-10 of the slope).
+        h = 1e-6 * amax
+        g_in = np.zeros(n_coef)
+        if modal is None:
+            g_in[n_coef - p_shape :] = cl._basis(np.array([1.0 - h / amax]), degree)[0]
+        else:
+            g_in[n_coef - p_shape :] = modal.basis_t(np.array([amax - h]))[:, 0]
+        g_slope = (g_tip - g_in) / h
+        return float(g_tip @ cov @ g_slope), float(g_slope @ cov @ g_slope)
+
+    # The clamped prior's check, as in fit_centreline: the beam's inliers alone with a
+    # free offset and a free slope at the root (not for a reference on another fit's
+    # inliers, whose root is that fit's to check), fitted in :func:`_joint_k`: its rows
+    # (width, offset, slope, shape) over the beam's points, the outliers at weight 0.
+    kb = keep[:n_beam]
+    n_kb = int(np.count_nonzero(kb))
+    yb = b[:n_beam][kb]
+    slope, slope_sd = math.nan, math.nan
+    if not given:
+        slope = free2 / amax
+        slope_sd = math.sqrt(max(inv22 * s2_free * infl, 0.0)) / amax
+    centre: cl.CentreLine | cl.ModalCentreLine
+    if modal is None:
+        centre = cl.CentreLine(cl._to_power(degree).T @ coef[n_coef - p_shape :], amax)
+    else:
+        centre = modal.centre(coef[n_coef - p_shape :])
+    rb = r[:n_beam][kb]
+    fit = cl.CentreFit(
+        centre=centre,
+        left=left[keep[:nl]],
+        right=right[keep[nl:n_beam]],
+        width=float(coef[0]),
+        # np.mean's sum and division, without its dispatch
+        rms=math.sqrt(float(np.add.reduce(rb * rb)) / len(rb)),
+        tip_sd=tip_sd,
+        root_slope_rad=slope,
+        root_slope_sd_rad=slope_sd,
+        edge_rho=edge_rho,
+        outlier_fraction=1.0 - n_kb / n_beam,
+        end_cov=end_cov,
+    )
+    shape_chi2, shape_dof = math.nan, 0
+    if modal is not None and not given:  # a reference on another fit's inliers: none
+        # The modes against the modes and the polynomial together, on the beam's inliers
+        # (its own width, turn and shape): the residual's components along the extra
+        # shapes, orthonormalised against the modes', are independent N(0, sigma^2)
+        # when the modes hold the shape, however near the two spaces lie.
+        # The rows gathered row-major: each row's products then run over contiguous
+        # memory (half the time of the column-major gather's strided rows; the same
+        # algorithm, its rounding in another order).
+        n_m = 2 + p_shape
+        x = np.empty((n_m + degree - 1, n_beam))
+        x[0] = a_t[0, :n_beam]
+        x[1] = a_t[1, :n_beam]
+        x[2:n_m] = a_t[n_coef - p_shape :, :n_beam]
+        cl._basis_t(u, degree, out=x[n_m:])
+        q, n_m = cl._orthonormalise(x.compress(kb, axis=1), n_m)
+        proj = q @ yb
+        extra = proj[n_m:]
+        shape_dof = len(extra)
+        rss_u = float(yb @ yb - proj @ proj)
+        s2_u = max(rss_u, 1e-30) / max(n_kb - len(q), 1)
+        shape_chi2 = float(extra @ extra) / (s2_u * infl)
+    if use_hub:
+        rh = r[n_beam:][keep[n_beam:]]
+        hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
+        hub_rms = math.sqrt(float(np.add.reduce(rh * rh)) / len(rh))
+    else:
+        hub, hub_rms = (math.nan, math.nan), math.nan
+    return cl.JointFit(
+        rotation_rad=float(coef[1]),
+        rotation_sd_rad=math.sqrt(max(float(cov[1, 1]), 0.0)),
+        fit=fit,
+        hub_width=hub[0],
+        hub_offset=hub[1],
+        hub_rms=hub_rms,
+        shape_chi2=shape_chi2,
+        shape_dof=shape_dof,
+        inliers=keep,
+    )
+
+
+def _joint_fit_problem(rng, nl, nr, nh):
+    """Edges of a bent beam (a clamped quartic and a swing, not beambench's shapes) with
+    outliers, and ``nh`` points on each hub edge."""
+    amax = 0.74
+    al, ar = np.sort(rng.uniform(0.03, amax, nl)), np.sort(rng.uniform(0.03, amax, nr))
+
+    def shape(a):
+        return 0.05 * (a / amax) ** 2 - 0.02 * (a / amax) ** 4 + 0.002 * (a + 0.04)
+
+    left = np.column_stack([al, shape(al) + 0.008 + 3e-5 * rng.standard_normal(nl)])
+    right = np.column_stack([ar, shape(ar) - 0.008 + 3e-5 * rng.standard_normal(nr)])
+    for pts in (left, right):
+        bad = rng.random(len(pts)) < 0.03
+        pts[bad, 1] += rng.uniform(-2e-3, 2e-3, int(bad.sum()))
+    hx = np.sort(rng.uniform(-0.09, -0.01, nh))
+    hub_a = np.column_stack([hx, 0.002 * (hx + 0.04) + 0.012 + 3e-5 * rng.standard_normal(nh)])
+    hub_b = np.column_stack([hx, 0.002 * (hx + 0.04) - 0.012 + 3e-5 * rng.standard_normal(nh)])
+    return left, right, hub_a, hub_b, amax
+
+
+def _assert_same_fit(got, ref) -> None:
+    assert not isinstance(got, str) and not isinstance(ref, str)
+    np.testing.assert_array_equal(got.inliers, ref.inliers)
+    np.testing.assert_array_equal(got.fit.left, ref.fit.left)
+    np.testing.assert_array_equal(got.fit.right, ref.fit.right)
+    assert got.shape_dof == ref.shape_dof
+    # sums in another order: ~1e-12 relative (the module's tolerance note), and the
+    # solutions' cond(gram) on that
+    for name in ("rotation_rad", "rotation_sd_rad", "hub_width", "hub_offset", "hub_rms"):
+        np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-10)
+    for name in (
+        "width",
+        "rms",
+        "tip_sd",
+        "root_slope_rad",
+        "root_slope_sd_rad",
+        "edge_rho",
+        "outlier_fraction",
+    ):
+        np.testing.assert_allclose(getattr(got.fit, name), getattr(ref.fit, name), rtol=1e-10)
+    # The shape test's extra components are what is left of the polynomial's shapes
+    # after the modes', which lie near them: the rounding of the projections grows by
+    # the ratio of the rows' norms to what is left (up to ~1e3 here).
+    np.testing.assert_allclose(got.shape_chi2, ref.shape_chi2, rtol=1e-8)
+    a = np.linspace(0.0, 0.8, 9)
+    np.testing.assert_allclose(got.fit.centre(a), ref.fit.centre(a), rtol=1e-10, atol=1e-14)
+    assert got.fit.end_cov is not None and ref.fit.end_cov is not None
+    np.testing.assert_allclose(got.fit.end_cov(), ref.fit.end_cov(), rtol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("nh", [0, 40])
+def test_fit_joint_kernel_against_the_numpy_glue(seed: int, nh: int) -> None:
+    """:func:`_fit_joint` (the design, the statistics and the shape test in
+    ``_fit_joint_k``) against its numpy form: the polynomial with and without the edges'
+    slope, the modes along a first fit's centre line and without one, and the
+    references on the modes' inliers (the polynomial, two more modes)."""
+    rng = np.random.default_rng(300 + seed)
+    left, right, ha, hb, amax = _joint_fit_problem(rng, 431 + 7 * seed, 419, nh)
+    cfp, length, deg = 0.047, 0.79, 7 + seed
+    poly = cl._fit_joint(left, right, ha, hb, deg, amax, cfp, None)
+    _assert_same_fit(poly, _fit_joint_ref(left, right, ha, hb, deg, amax, cfp, None))
+    assert not isinstance(poly, str)
+    slope = poly.fit.centre.deriv
+    args = (left, right, ha, hb, deg, amax, cfp)
+    _assert_same_fit(cl._fit_joint(*args, None, slope), _fit_joint_ref(*args, None, slope))
+    for along in (None, cl.arc_map(poly.fit.centre, amax)):
+        modal = cl._Modes(4, length, amax, along)
+        got = cl._fit_joint(*args, modal, slope)
+        _assert_same_fit(got, _fit_joint_ref(*args, modal, slope))
+        assert not isinstance(got, str) and math.isfinite(got.shape_chi2)
+        more = cl._Modes(6, length, amax, along)
+        for shape in (None, more):
+            _assert_same_fit(
+                cl._fit_joint(*args, shape, slope, got.inliers),
+                _fit_joint_ref(*args, shape, slope, got.inliers),
+            )
