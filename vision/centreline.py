@@ -32,7 +32,6 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.polynomial import Legendre, Polynomial
-from numpy.polynomial import polynomial as pw
 from numpy.typing import NDArray
 
 from vision.jit import kernel
@@ -47,7 +46,7 @@ class CentreLine:
     a linear extension past both ends (the tip is found just beyond the last edge point)."""
 
     def __init__(self, coef_u: NDArray[np.float64], amax: float) -> None:
-        self.coef = np.asarray(coef_u, dtype=np.float64)
+        self.coef = np.ascontiguousarray(coef_u, dtype=np.float64)
         self.amax = float(amax)
         # d/da of the series in u = a / amax (numpy.polynomial's polyder, without its
         # generic machinery: this is built once per frame).
@@ -55,14 +54,16 @@ class CentreLine:
         self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
 
     def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
-        a = np.asarray(a, dtype=np.float64)
-        ac = np.clip(a, 0.0, self.amax)
-        u = ac / self.amax
-        return np.asarray(pw.polyval(u, self.coef) + (a - ac) * pw.polyval(u, self.dcoef))
+        return self._eval(a, True)
 
     def deriv(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
-        ac = np.clip(np.asarray(a, dtype=np.float64), 0.0, self.amax)
-        return np.asarray(pw.polyval(ac / self.amax, self.dcoef))
+        return self._eval(a, False)
+
+    def _eval(self, a: NDArray[np.float64], value: bool) -> NDArray[np.float64]:
+        """The series (``value``) or its slope at ``a`` (:func:`_centre_k`)."""
+        a = np.asarray(a, dtype=np.float64)
+        flat = np.ascontiguousarray(a.reshape(-1))
+        return _centre_k(flat, self.coef, self.dcoef, self.amax, value).reshape(a.shape)
 
 
 # -- the physical shape space: clamped-free modes ---------------------------------------
@@ -215,7 +216,7 @@ def _arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
     if isinstance(centre, ModalCentreLine):
         a, s, slope = centre._a, centre._s, centre._slope
     else:
-        a = np.linspace(0.0, 1.1 * a_end, 401)
+        a = linspace(0.0, 1.1 * a_end, 401)
         slope = centre.deriv(a)
         ds = np.sqrt(1.0 + slope**2)
         s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
@@ -1008,6 +1009,71 @@ def _modes_k(
     return out
 
 
+@kernel
+def _polyval_k(c: NDArray[np.float64], x: float) -> float:
+    """``numpy.polynomial.polynomial.polyval(x, c)`` at one point: Horner's rule from the
+    highest power, the same operations in the same order (0 for no coefficients)."""
+    n = c.shape[0]
+    if n == 0:
+        return x * 0.0
+    acc = c[n - 1] + x * 0.0
+    for i in range(n - 2, -1, -1):
+        acc = c[i] + acc * x
+    return acc
+
+
+@kernel
+def _centre_k(
+    a: NDArray[np.float64],
+    coef: NDArray[np.float64],
+    dcoef: NDArray[np.float64],
+    amax: float,
+    value: bool,
+) -> NDArray[np.float64]:
+    """:class:`CentreLine` at ``a`` (``value``: the series, extended linearly past both
+    ends; else its slope ``dcoef``): ``a`` clipped to ``0 .. amax`` as ``np.clip`` does
+    (NaN stays NaN), ``u = a / amax``, each series by :func:`_polyval_k`."""
+    out = np.empty(a.shape[0])
+    for m in range(a.shape[0]):
+        x = a[m]
+        ac = x
+        if x < 0.0:
+            ac = 0.0
+        elif x > amax:
+            ac = amax
+        u = ac / amax
+        d = _polyval_k(dcoef, u)
+        out[m] = _polyval_k(coef, u) + (x - ac) * d if value else d
+    return out
+
+
+def linspace(start: float, stop: float, num: int) -> NDArray[np.float64]:
+    """``np.linspace(start, stop, num)`` of two float64 scalars, element for element the
+    same (:func:`_linspace_k`; numpy's own call costs several times the values for the
+    few hundred a measurement asks for, a dozen times a frame)."""
+    if num < 0:
+        raise ValueError(f"Number of samples, {num}, must be non-negative.")
+    return _linspace_k(float(start), float(stop), int(num))
+
+
+@kernel
+def _linspace_k(start: float, stop: float, num: int) -> NDArray[np.float64]:
+    """:func:`linspace`: numpy's operations, ``i * step + start`` (``(i / div) * delta
+    + start`` where the step underflows to 0), the last value ``stop``."""
+    out = np.empty(num)
+    div = num - 1
+    delta = stop - start
+    if div > 0:
+        step = delta / div
+        for i in range(num):
+            out[i] = (i / div * delta if step == 0 else i * step) + start
+        out[num - 1] = stop
+    else:
+        for i in range(num):
+            out[i] = i * delta + start
+    return out
+
+
 #: Trapezoid samples along the centre line for arc lengths: the rule's error,
 #: ``L h^2 max|f''| / 12`` with ``f = sqrt(1 + b'^2)``, is below 1e-7 m for the beam's
 #: curvatures (|b''| < 1 /m, |b'| < 0.2 over 0.85 m).
@@ -1016,7 +1082,7 @@ _ARC_SAMPLES = 801
 
 def arc_length(centre: CentreLine | ModalCentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
-    a = np.linspace(0.0, a_end, _ARC_SAMPLES)
+    a = linspace(0.0, a_end, _ARC_SAMPLES)
     return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
 
 
@@ -1024,7 +1090,7 @@ def stations_to_a(
     centre: CentreLine | ModalCentreLine, stations: NDArray[np.float64], a_end: float
 ) -> NDArray[np.float64]:
     """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
-    a = np.linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
+    a = linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
     ds = np.sqrt(1.0 + centre.deriv(a) ** 2)
     s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
     return np.interp(stations, s, a)

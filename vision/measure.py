@@ -39,8 +39,13 @@ from vision.centreline import (
     CentreLine,
     JointFit,
     ModalCentreLine,
+    _dot_k,
+    _lu_k,
+    _lu_solve_k,
+    _polyval_k,
     arc_length,
     fit_clamped_joint,
+    linspace,
     stations_to_a,
 )
 from vision.edges import strip_edges_many
@@ -282,14 +287,8 @@ class Measurer:
         edges = smear_px == 0.0
         slope_fn = _rough_slope(rough, clamp, e) if edges else None
         for _ in range(6):
-            n = np.array([-e[1], e[0]])
             d_clamp = float(clamp @ e)
-            on_axis = d_clamp * e
-            la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
-            amax = float(max(la[:, 0].max(), lb[:, 0].max()))
-            da, db = hub_a - on_axis, hub_b - on_axis
-            ha = np.column_stack([da @ e, da @ n])
-            hb = np.column_stack([db @ e, db @ n])
+            la, lb, ha, hb, amax = self._frame(pa, pb, hub_a, hub_b, d_clamp, e, hub_w, length)
             res = fit_clamped_joint(
                 la, lb, ha, hb, self.poly_degree, amax, d_clamp, edge_slope=slope_fn
             )
@@ -379,7 +378,7 @@ class Measurer:
         a_st = stations_to_a(centre, self.stations_m, a_tip)
         lat_st = centre(a_st)
         k = 200
-        a_line = np.linspace(0.0, a_tip, k)
+        a_line = linspace(0.0, a_tip, k)
         b_line = centre(a_line)
         b_line[-1] = b_tip
         line_m = clamp[None, :] + a_line[:, None] * e[None, :] + b_line[:, None] * n[None, :]
@@ -434,14 +433,8 @@ class Measurer:
         joint: JointFit | None = None
         amax = amax_poly
         for _ in range(4):
-            n = np.array([-e[1], e[0]])
             d_clamp = float(clamp @ e)
-            on_axis = d_clamp * e
-            la, lb = self._beam_frame(pa, pb, on_axis, e, n, hub_w, length)
-            amax = float(max(la[:, 0].max(), lb[:, 0].max()))
-            da, db = hub_a - on_axis, hub_b - on_axis
-            ha = np.column_stack([da @ e, da @ n])
-            hb = np.column_stack([db @ e, db @ n])
+            la, lb, ha, hb, amax = self._frame(pa, pb, hub_a, hub_b, d_clamp, e, hub_w, length)
             res = fit_clamped_joint(
                 la,
                 lb,
@@ -576,7 +569,7 @@ class Measurer:
         # A scan line (a pixel row or column) crosses the hub's two edges up to a hub
         # width apart along the axis: scan past both faces, keep points clear of them.
         ext = 0.5 * hub_w
-        t = np.linspace(-ext, hub_len + ext, max(8, int((hub_len + 2 * ext) / self.px_m / 3)))
+        t = linspace(-ext, hub_len + ext, max(8, int((hub_len + 2 * ext) / self.px_m / 3)))
         hub_line = back[None, :] + t[:, None] * e[None, :]
         # The beam from past the clamp (its first scan lines would cross the shoulders)
         # to short of the tip (its last ones, the end face), on the rough centre line.
@@ -589,7 +582,7 @@ class Measurer:
         a1 = a_end - 0.6 * w_beam - 4 * self.px_m
         if a1 - a0 < 0.3 * self.calibration.beam_length_m:
             raise FrameFailure("beam too short in view")
-        aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
+        aq = linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
         bq = np.interp(aq, a, b)
         beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
         if not with_hub:
@@ -633,7 +626,7 @@ class Measurer:
         a, b = a[order], b[order]
         a0 = self._beam_start(hub_w)
         a1 = float((rough.tip - clamp) @ e) - 0.6 * w_beam - 4 * px_m
-        aq = np.linspace(a0, a1, max(20, int((a1 - a0) / (2 * px_m))))
+        aq = linspace(a0, a1, max(20, int((a1 - a0) / (2 * px_m))))
         bq = np.interp(aq, a, b)
         # Cuts across the beam along its local normal, sampled evenly in the plane (so the
         # centroid is the plane's; a cut oblique to a band whose smear grows along the
@@ -686,6 +679,40 @@ class Measurer:
         """Distance from the clamp (m) where the beam's edges start: scan lines nearer
         the clamp cross the hub's shoulders."""
         return 0.5 * hub_w + 4 * self.px_m
+
+    def _frame(
+        self,
+        pa: NDArray[np.float64],
+        pb: NDArray[np.float64],
+        hub_a: NDArray[np.float64],
+        hub_b: NDArray[np.float64],
+        d_clamp: float,
+        e: NDArray[np.float64],
+        hub_w: float,
+        length: float,
+    ) -> tuple[NDArray[np.float64], ...]:
+        """The beam's edge points (:meth:`_beam_frame`) and the hub's (``hub_a``,
+        ``hub_b``: all of them) in the hub frame of axis ``e`` through the clamp
+        ``d_clamp`` along it, and the beam's largest ``a``: one kernel
+        (:func:`_frame_points`)."""
+        ex, ey = float(e[0]), float(e[1])
+        ox, oy = d_clamp * ex, d_clamp * ey
+        la, lb, amax, swap, ha, hb = _frame_points(
+            np.ascontiguousarray(pa, dtype=np.float64),
+            np.ascontiguousarray(pb, dtype=np.float64),
+            np.ascontiguousarray(hub_a, dtype=np.float64),
+            np.ascontiguousarray(hub_b, dtype=np.float64),
+            ox,
+            oy,
+            ex,
+            ey,
+            self._beam_start(hub_w),
+        )
+        if len(la) < 5 or amax[0] < 0.3 * length:
+            raise FrameFailure("beam too short in view")
+        if swap:
+            la, lb = lb, la
+        return la, lb, ha, hb, float(max(amax[0], amax[1]))
 
     def _beam_frame(
         self,
@@ -784,6 +811,46 @@ def _beam_frame_points(
     return ha[:m], hb[:m], amax, median_in_place(diff) < 0
 
 
+@kernel
+def _frame_points(
+    pa: NDArray[np.float64],
+    pb: NDArray[np.float64],
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    ox: float,
+    oy: float,
+    ex: float,
+    ey: float,
+    a0: float,
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    bool,
+    NDArray[np.float64],
+    NDArray[np.float64],
+]:
+    """:meth:`Measurer._frame`: :func:`_beam_frame_points` about the clamp (ox, oy)
+    along (ex, ey) (normal (-ey, ex)), the largest a of each side's kept points (-inf:
+    none), and the hub's points in that frame, (a, b) each."""
+    nx, ny = -ey, ex
+    ha, hb, amax_a, swap = _beam_frame_points(pa, pb, ox, oy, ex, ey, nx, ny, a0)
+    amax = np.empty(2)
+    amax[0] = amax_a
+    amax[1] = -math.inf
+    for i in range(hb.shape[0]):
+        amax[1] = max(amax[1], hb[i, 0])
+    out = []
+    for pts in (hub_a, hub_b):
+        q = np.empty((pts.shape[0], 2))
+        for i in range(pts.shape[0]):
+            dx, dy = pts[i, 0] - ox, pts[i, 1] - oy
+            q[i, 0] = dx * ex + dy * ey
+            q[i, 1] = dx * nx + dy * ny
+        out.append(q)
+    return ha, hb, amax, swap, out[0], out[1]
+
+
 def _background_slope(
     prof: NDArray[np.float64], t: NDArray[np.float64], m_edge: int, a: NDArray[np.float64]
 ) -> NDArray[np.float64]:
@@ -823,15 +890,57 @@ def _rough_slope(
     if deg < 1:
         return lambda q: np.zeros_like(np.asarray(q, dtype=np.float64))
     # Least squares by the normal equations (a quartic in a / scale on [0, 1]: well
-    # conditioned; a tenth of polyfit's SVD).
-    vand = np.vander(a / scale, deg + 1, increasing=True)
-    coef = np.linalg.solve(vand.T @ vand, vand.T @ b)
-    der = coef[1:] * np.arange(1, deg + 1)
+    # conditioned; a tenth of polyfit's SVD), in a kernel.
+    der = _rough_slope_k(np.ascontiguousarray(a), np.ascontiguousarray(b), scale, deg)
 
     def slope(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(q) / scale, der) / scale)
+        q = np.asarray(q, dtype=np.float64)
+        flat = np.ascontiguousarray(q.reshape(-1))
+        return _scaled_polyval_k(flat, der, scale).reshape(q.shape)
 
     return slope
+
+
+@kernel
+def _rough_slope_k(
+    a: NDArray[np.float64], b: NDArray[np.float64], scale: float, deg: int
+) -> NDArray[np.float64]:
+    """:func:`_rough_slope`'s fit: the coefficients of the derivative (in ``a / scale``)
+    of the least-squares polynomial of degree ``deg`` through (a, b), by the normal
+    equations of the increasing Vandermonde matrix solved as ``np.linalg.solve`` does
+    (:func:`vision.centreline._lu_k`)."""
+    k, n = deg + 1, a.shape[0]
+    vand = np.empty((k, n))  # transposed: row j is (a / scale)^j
+    for m in range(n):
+        x = a[m] / scale
+        p = 1.0
+        for j in range(k):
+            vand[j, m] = p
+            p *= x
+    gram, rhs = np.empty((k, k)), np.empty(k)
+    for i in range(k):
+        for j in range(i + 1):
+            gram[i, j] = gram[j, i] = _dot_k(vand[i], vand[j])
+        rhs[i] = _dot_k(vand[i], b)
+    lu, piv, ok = _lu_k(gram)
+    if not ok:
+        raise np.linalg.LinAlgError("Singular matrix")
+    coef = _lu_solve_k(lu, piv, rhs)
+    der = np.empty(deg)
+    for j in range(deg):
+        der[j] = coef[j + 1] * (j + 1)
+    return der
+
+
+@kernel
+def _scaled_polyval_k(
+    q: NDArray[np.float64], c: NDArray[np.float64], scale: float
+) -> NDArray[np.float64]:
+    """``polyval(q / scale, c) / scale`` (:func:`vision.centreline._polyval_k`)."""
+    out = np.empty(q.shape[0])
+    for m in range(q.shape[0]):
+        out[m] = _polyval_k(c, q[m] / scale) / scale
+    return out
 
 
 def _clear_of_faces(

@@ -626,3 +626,24 @@ def test_fit_joint_kernel_against_the_numpy_glue(seed: int, nh: int) -> None:
                 cl._fit_joint(*args, shape, slope, got.inliers),
                 _fit_joint_ref(*args, shape, slope, got.inliers),
             )
+
+
+def test_centre_line_kernel_is_numpys_polyval_exactly() -> None:
+    """:class:`CentreLine`'s value and slope (``_centre_k``) against the numpy form they
+    replaced (``np.clip`` and ``polyval``): the same operations, equal exactly, inside,
+    past both ends (the linear extension), at the ends, and NaN through."""
+    from numpy.polynomial import polynomial as pw
+
+    rng = np.random.default_rng(21)
+    for degree in (2, 5, 9):
+        coef = rng.standard_normal(degree + 1) * 0.01
+        amax = 0.61 + 0.1 * rng.random()
+        line = cl.CentreLine(coef, amax)
+        a = np.concatenate([rng.uniform(-0.2, 0.9, 300), [0.0, -0.0, amax, np.nan]])
+        ac = np.clip(a, 0.0, amax)
+        u = ac / amax
+        value = pw.polyval(u, line.coef) + (a - ac) * pw.polyval(u, line.dcoef)
+        np.testing.assert_array_equal(line(a), value)
+        np.testing.assert_array_equal(line.deriv(a), pw.polyval(u, line.dcoef))
+        grid = a[:300].reshape(20, 15)  # any shape, as numpy's
+        np.testing.assert_array_equal(line(grid), value[:300].reshape(20, 15))
