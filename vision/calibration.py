@@ -41,6 +41,7 @@ from vision.homography import (
     apply_homography,
     collineation_4pt,
     dlt_homography,
+    map_points,
 )
 
 DEFAULT_BEAM_LENGTH_M = 0.835
@@ -153,12 +154,19 @@ class Calibration:
         return self.fit.matrix
 
     def to_px(self, points_m: ArrayLike) -> NDArray[np.float64]:
-        """Beam-plane points (N, 2), m, to raw (distorted) image pixels (N, 2), (x, y)."""
-        return plane_to_px(points_m, self._ideal_from_plane, self._lens)
+        """Beam-plane points (N, 2), m, to raw (distorted) image pixels (N, 2), (x, y):
+        :func:`plane_to_px` with the homography by its formula in a kernel
+        (:func:`~vision.homography.map_points`: the measurement maps a dozen small
+        batches a frame)."""
+        ideal = map_points(self._ideal_from_plane, points_m)
+        return ideal if self._lens.identity else self._lens.distort(ideal)
 
     def to_plane(self, points_px: ArrayLike) -> NDArray[np.float64]:
-        """Raw image pixels (N, 2), (x, y), to beam-plane points (N, 2), m."""
-        return px_to_plane(points_px, self.fit.matrix, self._lens)
+        """Raw image pixels (N, 2), (x, y), to beam-plane points (N, 2), m (the inverse
+        of :meth:`to_px`, :func:`px_to_plane` as it)."""
+        lens = self._lens
+        ideal = points_px if lens.identity else lens.undistort(np.asarray(points_px, np.float64))
+        return map_points(self.fit.matrix, ideal)
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {

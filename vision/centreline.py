@@ -35,7 +35,7 @@ from numpy.polynomial import Legendre, Polynomial
 from numpy.typing import NDArray
 
 from vision.jit import kernel
-from vision.sampling import median, median_in_place
+from vision.sampling import median, median_in_place, numpy_sum
 
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
 TUKEY_C = 4.685
@@ -214,16 +214,15 @@ def arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
 def _arc_map(centre: CentreLine | ModalCentreLine, a_end: float) -> ArcMap:
     """:func:`arc_map`, computed."""
     if isinstance(centre, ModalCentreLine):
-        a, s, slope = centre._a, centre._s, centre._slope
+        # (the tables' arc lengths are shared and read-only: a writable copy, so that
+        # the kernel below compiles for one kind of array)
+        a, s, slope = centre._a, centre._s.copy(), centre._slope
     else:
         a = linspace(0.0, 1.1 * a_end, 401)
         slope = centre.deriv(a)
-        ds = np.sqrt(1.0 + slope**2)
-        s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
+        s = _cumulative_k(a, slope, True)
     th = np.arctan(slope)
-    f = th - np.sin(th)
-    corr = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(s))])
-    return ArcMap(a, s, corr)
+    return ArcMap(a, s, _cumulative_k(s, th - np.sin(th), False))
 
 
 @dataclass
@@ -1083,7 +1082,7 @@ _ARC_SAMPLES = 801
 def arc_length(centre: CentreLine | ModalCentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
     a = linspace(0.0, a_end, _ARC_SAMPLES)
-    return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
+    return _arc_length_k(a, centre.deriv(a))
 
 
 def stations_to_a(
@@ -1091,9 +1090,42 @@ def stations_to_a(
 ) -> NDArray[np.float64]:
     """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
     a = linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
-    ds = np.sqrt(1.0 + centre.deriv(a) ** 2)
-    s = np.concatenate([[0.0], np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(a))])
-    return np.interp(stations, s, a)
+    return np.interp(stations, _cumulative_k(a, centre.deriv(a), True), a)
+
+
+@kernel
+def _arc_length_k(a: NDArray[np.float64], slope: NDArray[np.float64]) -> float:
+    """``np.trapezoid(np.sqrt(1 + slope**2), a)``: its terms, summed as numpy sums
+    them (:func:`vision.sampling.numpy_sum`): equal exactly."""
+    n = a.shape[0]
+    if n < 2:
+        return 0.0
+    terms = np.empty(n - 1)
+    prev = math.sqrt(1.0 + slope[0] * slope[0])
+    for i in range(n - 1):
+        y = math.sqrt(1.0 + slope[i + 1] * slope[i + 1])
+        terms[i] = (a[i + 1] - a[i]) * (y + prev) / 2.0
+        prev = y
+    return numpy_sum(terms, n - 1)
+
+
+@kernel
+def _cumulative_k(x: NDArray[np.float64], y: NDArray[np.float64], arc: bool) -> NDArray[np.float64]:
+    """The cumulative trapezoid integral of ``y`` (``arc``: of ``sqrt(1 + y^2)``) over
+    ``x`` from 0, as ``concatenate([[0], cumsum(0.5 * (y[1:] + y[:-1]) * diff(x))])``
+    (numpy's cumulative sum runs in order: equal exactly)."""
+    n = x.shape[0]
+    out = np.empty(n)
+    if n == 0:
+        return out
+    out[0] = 0.0
+    prev = math.sqrt(1.0 + y[0] * y[0]) if arc else y[0]
+    for i in range(1, n):
+        cur = math.sqrt(1.0 + y[i] * y[i]) if arc else y[i]
+        step = 0.5 * (cur + prev) * (x[i] - x[i - 1])
+        out[i] = step if i == 1 else out[i - 1] + step
+        prev = cur
+    return out
 
 
 @dataclass

@@ -55,7 +55,7 @@ from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.jit import kernel
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import bilinear, median, median_in_place, unit_step_gradient
+from vision.sampling import bilinear, median, median_in_place
 
 log = logging.getLogger(__name__)
 
@@ -519,18 +519,18 @@ class Measurer:
     ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]:
         """Edge points (plane, m) on both sides of strips ``(centre line (K, 2) m, half
         width m)``, scanned in one pass, and the ramp widths (px) of each point pair."""
-        lines, offsets = [], []
-        for line_m, half_m in strips:
-            # Half width in pixels across the strip, point by point (perspective
-            # foreshortens across and along differently).
-            t = unit_step_gradient(line_m)
-            t /= np.hypot(t[:, 0], t[:, 1])[:, None]
-            lines.append(line_m)
-            offsets.append(line_m + half_m * np.column_stack([-t[:, 1], t[:, 0]]))
-        both = self.calibration.to_px(np.vstack(lines + offsets))
-        sizes = list(itertools.accumulate([len(x) for x in lines], initial=0))
-        px, off = both[: sizes[-1]], both[sizes[-1] :]
-        across = np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
+        # Half width in pixels across the strip, point by point (perspective
+        # foreshortens across and along differently): the lines and their points offset
+        # by the half width along the normal, mapped in one batch (:func:`_offsets_k`).
+        sizes = list(itertools.accumulate([len(x) for x, _ in strips], initial=0))
+        both = self.calibration.to_px(
+            _offsets_k(
+                np.vstack([x for x, _ in strips]),
+                np.array(sizes, dtype=np.intp),
+                np.array([h for _, h in strips], dtype=np.float64),
+            )
+        )
+        px, across = both[: sizes[-1]], _across_k(both)
         found = strip_edges_many(
             image,
             [(px[a:b], across[a:b]) for a, b in itertools.pairwise(sizes)],
@@ -849,6 +849,46 @@ def _frame_points(
             q[i, 1] = dx * nx + dy * ny
         out.append(q)
     return ha, hb, amax, swap, out[0], out[1]
+
+
+@kernel
+def _offsets_k(
+    lines: NDArray[np.float64], sizes: NDArray[np.intp], halves: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """:meth:`Measurer._strip_points`' points: the strips' centre lines (``lines[sizes[k]
+    : sizes[k + 1]]``, each at least 2 points) and after them each point moved by its
+    strip's half width along the line's unit normal (``(-t_y, t_x)``, ``t`` the unit
+    step gradient: central differences, one-sided at the ends, as
+    :func:`vision.sampling.unit_step_gradient`)."""
+    n = lines.shape[0]
+    out = np.empty((2 * n, 2))
+    for k in range(sizes.shape[0] - 1):
+        lo, hi, half = sizes[k], sizes[k + 1], halves[k]
+        for i in range(lo, hi):
+            if i == lo:
+                tx, ty = lines[i + 1, 0] - lines[i, 0], lines[i + 1, 1] - lines[i, 1]
+            elif i == hi - 1:
+                tx, ty = lines[i, 0] - lines[i - 1, 0], lines[i, 1] - lines[i - 1, 1]
+            else:
+                tx = (lines[i + 1, 0] - lines[i - 1, 0]) / 2.0
+                ty = (lines[i + 1, 1] - lines[i - 1, 1]) / 2.0
+            norm = math.hypot(tx, ty)
+            tx, ty = tx / norm, ty / norm
+            out[i, 0], out[i, 1] = lines[i, 0], lines[i, 1]
+            out[n + i, 0] = lines[i, 0] + half * -ty
+            out[n + i, 1] = lines[i, 1] + half * tx
+    return out
+
+
+@kernel
+def _across_k(both: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The distance from each of the first half of the points ``both`` to its partner
+    in the second half (the half widths in pixels)."""
+    n = both.shape[0] // 2
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = math.hypot(both[n + i, 0] - both[i, 0], both[n + i, 1] - both[i, 1])
+    return out
 
 
 def _background_slope(

@@ -109,3 +109,21 @@ def test_apply_homography_points_at_and_near_the_horizon() -> None:
     g = np.eye(3)
     np.testing.assert_array_equal(apply_homography(g, [[0.0, 0.0]]), [[0.0, 0.0]])
     assert apply_homography(g, np.zeros((0, 2))).shape == (0, 2)
+
+
+def test_map_points_is_the_formula_exactly() -> None:
+    """``map_points`` (the kernel the calibration's mappings use) gives the numpy
+    formula's values exactly, NaN on the horizon, and OpenCV's transform's within
+    rounding elsewhere (OpenCV multiplies by 1 / w: one more rounding)."""
+    from vision.homography import _apply_numpy, map_points
+
+    rng = np.random.default_rng(51)
+    h = np.array([[1.1, 0.02, 3.0], [0.01, 0.9, 4.0], [1e-3, 2e-3, -1.0]])
+    pts = np.vstack([rng.uniform(-500, 500, (300, 2)), [[1000.0, 0.0], [0.0, 0.0]]])
+    got = map_points(h, pts)
+    np.testing.assert_array_equal(got, _apply_numpy(h, pts))
+    assert np.all(np.isnan(got[-2]))
+    np.testing.assert_allclose(got[:-2], apply_homography(h, pts[:-2]), rtol=1e-13)
+    assert map_points(h, np.zeros((0, 2))).shape == (0, 2)
+    one = np.array([[3.0, 7.0]])
+    np.testing.assert_array_equal(map_points(h, [3.0, 7.0]), _apply_numpy(h, one))

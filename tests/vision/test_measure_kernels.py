@@ -118,3 +118,33 @@ def test_linspace_is_numpys_exactly() -> None:
     ]
     for start, stop, num in cases:
         np.testing.assert_array_equal(linspace(start, stop, num), np.linspace(start, stop, num))
+
+
+def test_the_strip_offsets_are_the_numpy_forms() -> None:
+    """``_offsets_k`` and ``_across_k`` (the strips' half widths in pixels) against the
+    numpy form they replaced (``unit_step_gradient``, normalised by ``np.hypot``, the
+    normal ``(-t_y, t_x)`` times the half width): equal exactly."""
+    from vision.measure import _across_k, _offsets_k
+    from vision.sampling import unit_step_gradient
+
+    rng = np.random.default_rng(45)
+    strips = []
+    for k in (2, 3, 57, 211):
+        t = np.sort(rng.uniform(0.0, 0.5, k))
+        strips.append((np.column_stack([t, 0.1 * t**2 + 0.01 * rng.random()]), 0.01 * k))
+    lines, offsets = [], []
+    for line_m, half_m in strips:
+        t = unit_step_gradient(line_m)
+        t /= np.hypot(t[:, 0], t[:, 1])[:, None]
+        lines.append(line_m)
+        offsets.append(line_m + half_m * np.column_stack([-t[:, 1], t[:, 0]]))
+    want = np.vstack(lines + offsets)
+    sizes = np.cumsum([0] + [len(x) for x, _ in strips]).astype(np.intp)
+    halves = np.array([h for _, h in strips])
+    got = _offsets_k(np.vstack(lines), sizes, halves)
+    np.testing.assert_array_equal(got, want)
+    n = sizes[-1]
+    px, off = want[:n], want[n:]
+    np.testing.assert_array_equal(
+        _across_k(got), np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
+    )
