@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.centreline import correlation_inflation
+from vision.centreline import correlation_inflation, linspace
 from vision.errors import FrameFailure
 from vision.jit import kernel
 from vision.locate import Rough, ToPx, _grid
@@ -242,7 +242,7 @@ def clamp_face(
     inner, outer = w_beam / 2, hub_w / 2
     if outer - inner < 3 * px_m:
         raise FrameFailure("hub not wider than the beam by enough to find the clamp")
-    lat = np.linspace(inner + 0.3 * (outer - inner), outer - 0.3 * (outer - inner), 3)
+    lat = linspace(inner + 0.3 * (outer - inner), outer - 0.3 * (outer - inner), 3)
     lateral = np.concatenate([lat, -lat])
     return end_edge(image, origin, e, n, lateral, 0.0, hub_w, to_px=to_px, px_m=px_m)
 
@@ -259,7 +259,7 @@ def back_face(
     px_m: float,
 ) -> float:
     """Axis coordinate (from the clamp, negative) of the hub's back end face."""
-    lat = np.linspace(-0.6, 0.6, 5) * hub_w / 2
+    lat = linspace(-0.6, 0.6, 5) * hub_w / 2
     reach = 0.5 * min(abs(guess_a), 2.0 * hub_w)
     return -end_edge(image, clamp, -e, n, lat, -guess_a, reach, to_px=to_px, px_m=px_m)
 

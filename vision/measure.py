@@ -690,7 +690,9 @@ class Measurer:
         e: NDArray[np.float64],
         hub_w: float,
         length: float,
-    ) -> tuple[NDArray[np.float64], ...]:
+    ) -> tuple[
+        NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float
+    ]:
         """The beam's edge points (:meth:`_beam_frame`) and the hub's (``hub_a``,
         ``hub_b``: all of them) in the hub frame of axis ``e`` through the clamp
         ``d_clamp`` along it, and the beam's largest ``a``: one kernel
