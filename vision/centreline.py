@@ -29,13 +29,14 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
+from typing import Any
 
 import numpy as np
 from numpy.polynomial import Legendre, Polynomial
 from numpy.typing import NDArray
 
 from vision.jit import kernel
-from vision.sampling import median, median_in_place, numpy_sum
+from vision.sampling import median, median_in_place
 
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
 TUKEY_C = 4.685
@@ -1082,7 +1083,7 @@ _ARC_SAMPLES = 801
 def arc_length(centre: CentreLine | ModalCentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
     a = linspace(0.0, a_end, _ARC_SAMPLES)
-    return _arc_length_k(a, centre.deriv(a))
+    return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
 
 
 def stations_to_a(
@@ -1091,22 +1092,6 @@ def stations_to_a(
     """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
     a = linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
     return np.interp(stations, _cumulative_k(a, centre.deriv(a), True), a)
-
-
-@kernel
-def _arc_length_k(a: NDArray[np.float64], slope: NDArray[np.float64]) -> float:
-    """``np.trapezoid(np.sqrt(1 + slope**2), a)``: its terms, summed as numpy sums
-    them (:func:`vision.sampling.numpy_sum`): equal exactly."""
-    n = a.shape[0]
-    if n < 2:
-        return 0.0
-    terms = np.empty(n - 1)
-    prev = math.sqrt(1.0 + slope[0] * slope[0])
-    for i in range(n - 1):
-        y = math.sqrt(1.0 + slope[i + 1] * slope[i + 1])
-        terms[i] = (a[i + 1] - a[i]) * (y + prev) / 2.0
-        prev = y
-    return numpy_sum(terms, n - 1)
 
 
 @kernel
@@ -1283,7 +1268,7 @@ def _fit_joint(
 ) -> JointFit | str:
     """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space:
     the shapes, the edges' slope and the modes' correction at the beam's points here,
-    the design, the fit and its statistics in one kernel (:func:`_fit_joint_k`)."""
+    the design, the fit and its statistics in three kernels (:func:`_fit_joint_core`)."""
     nl, nr = len(left), len(right)
     use_hub = len(hub_a) >= 5 and len(hub_b) >= 5
     if not use_hub:
@@ -1323,7 +1308,7 @@ def _fit_joint(
         edge_rho,
         shape_chi2,
         shape_dof,
-    ) = _fit_joint_k(
+    ) = _fit_joint_core(
         np.ascontiguousarray(left, dtype=np.float64),
         np.ascontiguousarray(right, dtype=np.float64),
         np.ascontiguousarray(hub_a, dtype=np.float64),
@@ -1419,8 +1404,7 @@ _NO_VALUES = np.zeros(0)
 _NO_ROWS = np.zeros((0, 0))
 
 
-@kernel
-def _fit_joint_k(
+def _fit_joint_core(
     left: NDArray[np.float64],
     right: NDArray[np.float64],
     hub_a: NDArray[np.float64],
@@ -1435,38 +1419,83 @@ def _fit_joint_k(
     min_edge: int,
     extra: NDArray[np.float64],
     g_shape: NDArray[np.float64],
+) -> tuple[Any, ...]:
+    """:func:`_fit_joint`'s design and arithmetic, three kernels in a row: the design
+    matrix transposed (:func:`_design_k`), the fit (:func:`_joint_k`; ``keep``: the
+    inliers, another fit's when ``given``, written in place) and its statistics
+    (:func:`_after_k`), then the modal shape test (``extra``: the polynomial's shapes
+    at the beam's points; none, or ``given``: no test). (Three calls, not one kernel
+    calling the others: a kernel's compilation optimises again all it calls, and
+    :func:`_joint_k` is most of the package's.) Returns (status of :func:`_joint_k`,
+    coefficients, covariance, tip sd, inliers on the beam, beam RMS, hub RMS (NaN: no
+    hub), free slope's coefficient, residual variance and inverse-normal element,
+    inflation, lag-1 correlation, shape chi-squared (NaN: no test), its degrees of
+    freedom)."""
+    a_t, b, u, lo, hi, ends, span_ends = _design_k(
+        left, right, hub_a, hub_b, clamp_from_pivot, amax, shape, slope, corr
+    )
+    status, coef, r, gram_inv, infl, rho, free2, s2_free, inv22 = _joint_k(
+        a_t, lo, hi, b, ends, span_ends, keep, given, np.ones(len(b)), len(shape), min_edge, u
+    )
+    nan = math.nan
+    if status != 0:
+        return status, coef, gram_inv, nan, 0, nan, nan, nan, nan, nan, nan, nan, nan, 0
+    cov, tip_sd, n_kb, rms, hub_rms = _after_k(
+        a_t, r, gram_inv, infl, keep, len(left), len(right), g_shape
+    )
+    chi2, dof = math.nan, 0
+    if len(extra) and not given:
+        # The modes against the modes and the polynomial together, on the beam's
+        # inliers (its own width, turn and shape): the residual's components along the
+        # extra shapes, orthonormalised against the modes', are independent
+        # N(0, sigma^2) when the modes hold the shape, however near the two spaces lie.
+        # The rows gathered row-major: each row's products then run over contiguous
+        # memory (half the time of the column-major gather's strided rows).
+        n_beam, p_shape = len(u), len(g_shape)
+        n_m = 2 + p_shape
+        x = np.empty((n_m + len(extra), n_beam))
+        x[0] = a_t[0, :n_beam]
+        x[1] = a_t[1, :n_beam]
+        x[2:n_m] = a_t[len(a_t) - p_shape :, :n_beam]
+        x[n_m:] = extra
+        kb = keep[:n_beam]
+        q, n_m = _orthonormalise(x.compress(kb, axis=1), n_m)
+        yb = b[:n_beam][kb]
+        proj = q @ yb
+        extra_proj = proj[n_m:]
+        dof = len(extra_proj)
+        rss_u = float(yb @ yb - proj @ proj)
+        s2_u = max(rss_u, 1e-30) / max(n_kb - len(q), 1)
+        chi2 = float(extra_proj @ extra_proj) / (s2_u * infl)
+    return (0, coef, cov, tip_sd, n_kb, rms, hub_rms, free2, s2_free, inv22, infl, rho, chi2, dof)
+
+
+@kernel
+def _design_k(
+    left: NDArray[np.float64],
+    right: NDArray[np.float64],
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    clamp_from_pivot: float,
+    amax: float,
+    shape: NDArray[np.float64],
+    slope: NDArray[np.float64],
+    corr: NDArray[np.float64],
 ) -> tuple[
-    int,
     NDArray[np.float64],
     NDArray[np.float64],
-    float,
-    int,
-    float,
-    float,
-    float,
-    float,
-    float,
-    float,
-    float,
-    float,
-    int,
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
+    NDArray[np.int64],
 ]:
-    """:func:`_fit_joint`'s design and arithmetic: the design matrix transposed (the
-    width's row ``+-1/2 sqrt(1 + slope^2)`` on the beam's edges, the turn's ``a +
+    """:func:`_fit_joint`'s design: the design matrix transposed (the width's row
+    ``+-1/2 sqrt(1 + slope^2)`` on the beam's edges, the turn's ``a +
     clamp_from_pivot`` everywhere, the hub edges' offsets (none when ``hub_a`` is
-    empty), the ``shape`` rows on the beam's edges) and the data (``b``, plus ``corr`` on
-    the beam's edges; ``slope``, ``corr`` empty: none), fitted by :func:`_joint_k`
-    (``keep``: the inliers, another fit's when ``given``, written in place); then the
-    covariance ``gram^-1 infl``, the tip's standard uncertainty along the shape
-    gradient ``g_shape``, the beam's inliers' count and RMS residual, the hub's, and,
-    when ``extra`` has rows and the inliers were not given, the shape test: the beam's
-    inliers' residual sum of squares that the ``extra`` shapes remove beyond the width,
-    turn and shape rows, orthonormalised (:func:`_orthonormalise_k`), over the residual
-    variance times ``infl``, and its degrees of freedom. Returns (status of
-    :func:`_joint_k`, coefficients, covariance, tip sd, inliers on the beam,
-    beam RMS, hub RMS (NaN: no hub), free slope's coefficient, residual variance and
-    inverse-normal element, inflation, lag-1 correlation, shape chi-squared (NaN: no
-    test), its degrees of freedom)."""
+    empty), the ``shape`` rows on the beam's edges), the data ``b`` (plus ``corr`` on
+    the beam's edges; ``slope``, ``corr`` empty: none), ``u = a / amax`` on the beam,
+    each row's nonzero range (``lo``, ``hi``), the groups' and the edges' ends."""
     nl, nr = left.shape[0], right.shape[0]
     n_beam = nl + nr
     n_ha, n_hb = hub_a.shape[0], hub_b.shape[0]
@@ -1517,13 +1546,31 @@ def _fit_joint_k(
         lo[3], hi[3] = n_beam + n_ha, n_all
         ends[1] = n_all
         span_ends[2], span_ends[3] = n_beam + n_ha, n_all
-    sig = np.ones(n_all)
+    return a_t, b, u, lo, hi, ends, span_ends
+
+
+@kernel
+def _after_k(
+    a_t: NDArray[np.float64],
+    r: NDArray[np.float64],
+    gram_inv: NDArray[np.float64],
+    infl: float,
+    keep: NDArray[np.bool_],
+    nl: int,
+    nr: int,
+    g_shape: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], float, int, float, float]:
+    """:func:`_fit_joint`'s statistics from the fit (residuals ``r``, inverse normal
+    matrix, inflation, inliers ``keep``): the covariance ``gram^-1 infl``, the tip's
+    standard uncertainty along the shape gradient ``g_shape`` (the shape's rows are
+    the last of ``a_t``), the beam's inliers' count and RMS residual, and the hub's
+    (NaN: none)."""
     nan = np.nan
-    status, coef, r, gram_inv, infl, rho, free2, s2_free, inv22 = _joint_k(
-        a_t, lo, hi, b, ends, span_ends, keep, given, sig, p_shape, min_edge, u
-    )
-    if status != 0:
-        return status, coef, gram_inv, nan, 0, nan, nan, nan, nan, nan, nan, nan, nan, 0
+    n_coef, n_all = a_t.shape
+    p_shape = g_shape.shape[0]
+    first = n_coef - p_shape
+    n_beam = nl + nr
+    use_hub = n_all > n_beam
     cov = gram_inv * infl
     # g cov g over the shape's block (the tip gradient is 0 on the other coefficients)
     tip_var = 0.0
@@ -1548,52 +1595,4 @@ def _fit_joint_k(
                 n_kh += 1
                 ss += r[m] * r[m]
         hub_rms = math.sqrt(ss / n_kh)
-    chi2, dof = nan, 0
-    n_extra = extra.shape[0]
-    if n_extra and not given:
-        # The modes against the modes and the polynomial together, on the beam's
-        # inliers (its own width, turn and shape): the residual's components along the
-        # extra shapes, orthonormalised against the modes', are independent
-        # N(0, sigma^2) when the modes hold the shape, however near the two spaces lie.
-        n_m = 2 + p_shape
-        x = np.empty((n_m + n_extra, n_kb))
-        yb = np.empty(n_kb)
-        j = 0
-        for m in range(n_beam):
-            if keep[m]:
-                x[0, j] = a_t[0, m]
-                x[1, j] = a_t[1, m]
-                for i in range(p_shape):
-                    x[2 + i, j] = a_t[first + i, m]
-                for i in range(n_extra):
-                    x[n_m + i, j] = extra[i, m]
-                yb[j] = b[m]
-                j += 1
-        q, k, kept_first = _orthonormalise_k(x, n_m)
-        proj_ss = 0.0
-        extra_ss = 0.0
-        for i in range(k):
-            p = _dot_k(q[i], yb)
-            proj_ss += p * p
-            if i >= kept_first:
-                extra_ss += p * p
-        dof = k - kept_first
-        rss_u = _dot_k(yb, yb) - proj_ss
-        s2_u = max(rss_u, 1e-30) / max(n_kb - k, 1)
-        chi2 = extra_ss / (s2_u * infl)
-    return (
-        0,
-        coef,
-        cov,
-        math.sqrt(max(tip_var, 0.0)),
-        n_kb,
-        rms,
-        hub_rms,
-        free2,
-        s2_free,
-        inv22,
-        infl,
-        rho,
-        chi2,
-        dof,
-    )
+    return cov, math.sqrt(max(tip_var, 0.0)), n_kb, rms, hub_rms

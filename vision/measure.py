@@ -39,10 +39,6 @@ from vision.centreline import (
     CentreLine,
     JointFit,
     ModalCentreLine,
-    _dot_k,
-    _lu_k,
-    _lu_solve_k,
-    _polyval_k,
     arc_length,
     fit_clamped_joint,
     linspace,
@@ -530,7 +526,8 @@ class Measurer:
                 np.array([h for _, h in strips], dtype=np.float64),
             )
         )
-        px, across = both[: sizes[-1]], _across_k(both)
+        px, off = both[: sizes[-1]], both[sizes[-1] :]
+        across = np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
         found = strip_edges_many(
             image,
             [(px[a:b], across[a:b]) for a, b in itertools.pairwise(sizes)],
@@ -696,25 +693,30 @@ class Measurer:
         """The beam's edge points (:meth:`_beam_frame`) and the hub's (``hub_a``,
         ``hub_b``: all of them) in the hub frame of axis ``e`` through the clamp
         ``d_clamp`` along it, and the beam's largest ``a``: one kernel
-        (:func:`_frame_points`)."""
+        (:func:`_beam_frame_points`)."""
         ex, ey = float(e[0]), float(e[1])
         ox, oy = d_clamp * ex, d_clamp * ey
-        la, lb, amax, swap, ha, hb = _frame_points(
+        la, lb, amax, swap = _beam_frame_points(
             np.ascontiguousarray(pa, dtype=np.float64),
             np.ascontiguousarray(pb, dtype=np.float64),
-            np.ascontiguousarray(hub_a, dtype=np.float64),
-            np.ascontiguousarray(hub_b, dtype=np.float64),
             ox,
             oy,
             ex,
             ey,
+            -ey,
+            ex,
             self._beam_start(hub_w),
         )
-        if len(la) < 5 or amax[0] < 0.3 * length:
+        if len(la) < 5 or amax < 0.3 * length:
             raise FrameFailure("beam too short in view")
+        amax = float(max(amax, lb[:, 0].max()))
+        n = np.array([-ey, ex])
+        da, db = hub_a - np.array([ox, oy]), hub_b - np.array([ox, oy])
+        ha = np.column_stack([da @ e, da @ n])
+        hb = np.column_stack([db @ e, db @ n])
         if swap:
             la, lb = lb, la
-        return la, lb, ha, hb, float(max(amax[0], amax[1]))
+        return la, lb, ha, hb, amax
 
     def _beam_frame(
         self,
@@ -814,46 +816,6 @@ def _beam_frame_points(
 
 
 @kernel
-def _frame_points(
-    pa: NDArray[np.float64],
-    pb: NDArray[np.float64],
-    hub_a: NDArray[np.float64],
-    hub_b: NDArray[np.float64],
-    ox: float,
-    oy: float,
-    ex: float,
-    ey: float,
-    a0: float,
-) -> tuple[
-    NDArray[np.float64],
-    NDArray[np.float64],
-    NDArray[np.float64],
-    bool,
-    NDArray[np.float64],
-    NDArray[np.float64],
-]:
-    """:meth:`Measurer._frame`: :func:`_beam_frame_points` about the clamp (ox, oy)
-    along (ex, ey) (normal (-ey, ex)), the largest a of each side's kept points (-inf:
-    none), and the hub's points in that frame, (a, b) each."""
-    nx, ny = -ey, ex
-    ha, hb, amax_a, swap = _beam_frame_points(pa, pb, ox, oy, ex, ey, nx, ny, a0)
-    amax = np.empty(2)
-    amax[0] = amax_a
-    amax[1] = -math.inf
-    for i in range(hb.shape[0]):
-        amax[1] = max(amax[1], hb[i, 0])
-    out = []
-    for pts in (hub_a, hub_b):
-        q = np.empty((pts.shape[0], 2))
-        for i in range(pts.shape[0]):
-            dx, dy = pts[i, 0] - ox, pts[i, 1] - oy
-            q[i, 0] = dx * ex + dy * ey
-            q[i, 1] = dx * nx + dy * ny
-        out.append(q)
-    return ha, hb, amax, swap, out[0], out[1]
-
-
-@kernel
 def _offsets_k(
     lines: NDArray[np.float64], sizes: NDArray[np.intp], halves: NDArray[np.float64]
 ) -> NDArray[np.float64]:
@@ -879,17 +841,6 @@ def _offsets_k(
             out[i, 0], out[i, 1] = lines[i, 0], lines[i, 1]
             out[n + i, 0] = lines[i, 0] + half * -ty
             out[n + i, 1] = lines[i, 1] + half * tx
-    return out
-
-
-@kernel
-def _across_k(both: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The distance from each of the first half of the points ``both`` to its partner
-    in the second half (the half widths in pixels)."""
-    n = both.shape[0] // 2
-    out = np.empty(n)
-    for i in range(n):
-        out[i] = math.hypot(both[n + i, 0] - both[i, 0], both[n + i, 1] - both[i, 1])
     return out
 
 
@@ -932,57 +883,15 @@ def _rough_slope(
     if deg < 1:
         return lambda q: np.zeros_like(np.asarray(q, dtype=np.float64))
     # Least squares by the normal equations (a quartic in a / scale on [0, 1]: well
-    # conditioned; a tenth of polyfit's SVD), in a kernel.
-    der = _rough_slope_k(np.ascontiguousarray(a), np.ascontiguousarray(b), scale, deg)
+    # conditioned; a tenth of polyfit's SVD).
+    vand = np.vander(a / scale, deg + 1, increasing=True)
+    coef = np.linalg.solve(vand.T @ vand, vand.T @ b)
+    der = coef[1:] * np.arange(1, deg + 1)
 
     def slope(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        q = np.asarray(q, dtype=np.float64)
-        flat = np.ascontiguousarray(q.reshape(-1))
-        return _scaled_polyval_k(flat, der, scale).reshape(q.shape)
+        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(q) / scale, der) / scale)
 
     return slope
-
-
-@kernel
-def _rough_slope_k(
-    a: NDArray[np.float64], b: NDArray[np.float64], scale: float, deg: int
-) -> NDArray[np.float64]:
-    """:func:`_rough_slope`'s fit: the coefficients of the derivative (in ``a / scale``)
-    of the least-squares polynomial of degree ``deg`` through (a, b), by the normal
-    equations of the increasing Vandermonde matrix solved as ``np.linalg.solve`` does
-    (:func:`vision.centreline._lu_k`)."""
-    k, n = deg + 1, a.shape[0]
-    vand = np.empty((k, n))  # transposed: row j is (a / scale)^j
-    for m in range(n):
-        x = a[m] / scale
-        p = 1.0
-        for j in range(k):
-            vand[j, m] = p
-            p *= x
-    gram, rhs = np.empty((k, k)), np.empty(k)
-    for i in range(k):
-        for j in range(i + 1):
-            gram[i, j] = gram[j, i] = _dot_k(vand[i], vand[j])
-        rhs[i] = _dot_k(vand[i], b)
-    lu, piv, ok = _lu_k(gram)
-    if not ok:
-        raise np.linalg.LinAlgError("Singular matrix")
-    coef = _lu_solve_k(lu, piv, rhs)
-    der = np.empty(deg)
-    for j in range(deg):
-        der[j] = coef[j + 1] * (j + 1)
-    return der
-
-
-@kernel
-def _scaled_polyval_k(
-    q: NDArray[np.float64], c: NDArray[np.float64], scale: float
-) -> NDArray[np.float64]:
-    """``polyval(q / scale, c) / scale`` (:func:`vision.centreline._polyval_k`)."""
-    out = np.empty(q.shape[0])
-    for m in range(q.shape[0]):
-        out[m] = _polyval_k(c, q[m] / scale) / scale
-    return out
 
 
 def _clear_of_faces(

@@ -603,7 +603,7 @@ def _assert_same_fit(got, ref) -> None:
 @pytest.mark.parametrize("nh", [0, 40])
 def test_fit_joint_kernel_against_the_numpy_glue(seed: int, nh: int) -> None:
     """:func:`_fit_joint` (the design, the statistics and the shape test in
-    ``_fit_joint_k``) against its numpy form: the polynomial with and without the edges'
+    ``_fit_joint_core``) against its numpy form: the polynomial with and without the edges'
     slope, the modes along a first fit's centre line and without one, and the
     references on the modes' inliers (the polynomial, two more modes)."""
     rng = np.random.default_rng(300 + seed)

@@ -50,59 +50,6 @@ def test_the_beam_frame_is_the_numpy_forms() -> None:
             assert swap == want[3] == (k % 2 == 0), k
 
 
-def test_the_frame_kernel_is_the_numpy_forms() -> None:
-    """``_frame_points``: the beam's pairs as ``_beam_frame_points`` keeps them, each
-    side's largest a, and the hub's points by the numpy form it replaced
-    (``column_stack([d @ e, d @ n])``)."""
-    from vision.measure import _frame_points
-
-    rng = np.random.default_rng(42)
-    for _ in range(60):
-        theta = rng.uniform(-np.pi, np.pi)
-        e = np.array([math.cos(theta), math.sin(theta)])
-        n = np.array([-e[1], e[0]])
-        origin = rng.normal(0, 0.1, 2)
-        m = int(rng.integers(1, 200))
-        a = rng.uniform(-0.05, 0.8, m)
-        pa = origin + a[:, None] * e + 0.0095 * n
-        pb = origin + (a + rng.normal(0, 1e-3, m))[:, None] * e - 0.0095 * n
-        hub = [rng.normal(0, 0.05, (int(rng.integers(0, 40)), 2)) for _ in range(2)]
-        got = _frame_points(pa, pb, hub[0], hub[1], *origin, *e, 0.02)
-        ha, hb, amax_a, swap = _beam_frame_points(pa, pb, *origin, *e, *n, 0.02)
-        np.testing.assert_array_equal(got[0], ha)
-        np.testing.assert_array_equal(got[1], hb)
-        assert got[2][0] == amax_a and got[3] == swap
-        assert got[2][1] == (hb[:, 0].max() if len(hb) else -math.inf)
-        for pts, q in zip(hub, got[4:], strict=True):
-            d = pts - origin
-            want = np.column_stack([d @ e, d @ n]) if len(pts) else np.zeros((0, 2))
-            np.testing.assert_allclose(q, want, rtol=0, atol=1e-15)
-
-
-def test_the_rough_slope_kernels_are_the_numpy_forms() -> None:
-    """``_rough_slope``: the derivative of the least-squares polynomial through the
-    rough centre line's points (numpy's Vandermonde, normal equations and ``solve``,
-    then ``polyval``): equal to rounding (a quartic on [0, 1]: cond ~1e5)."""
-    from numpy.polynomial import polynomial as pw
-
-    from vision.measure import _rough_slope_k, _scaled_polyval_k
-
-    rng = np.random.default_rng(43)
-    for deg in (1, 2, 4):
-        a = np.sort(rng.uniform(0.0, 0.7, 37))
-        b = 0.02 * a**2 - 0.03 * a**3 + 1e-4 * rng.standard_normal(37)
-        scale = float(np.max(np.abs(a)))
-        vand = np.vander(a / scale, deg + 1, increasing=True)
-        coef = np.linalg.solve(vand.T @ vand, vand.T @ b)
-        der = coef[1:] * np.arange(1, deg + 1)
-        got = _rough_slope_k(a, b, scale, deg)
-        np.testing.assert_allclose(got, der, rtol=1e-9, atol=1e-12 * np.abs(der).max())
-        q = rng.uniform(-0.1, 0.9, 50)
-        np.testing.assert_array_equal(
-            _scaled_polyval_k(q, der, scale), pw.polyval(q / scale, der) / scale
-        )
-
-
 def test_linspace_is_numpys_exactly() -> None:
     """``vision.centreline.linspace``, the kernel the measurement's sample lines use,
     element for element numpy's (ends, one and no samples, a step that underflows)."""
@@ -121,10 +68,10 @@ def test_linspace_is_numpys_exactly() -> None:
 
 
 def test_the_strip_offsets_are_the_numpy_forms() -> None:
-    """``_offsets_k`` and ``_across_k`` (the strips' half widths in pixels) against the
-    numpy form they replaced (``unit_step_gradient``, normalised by ``np.hypot``, the
+    """``_offsets_k`` (the strips' lines and their points a half width across) against
+    the numpy form it replaced (``unit_step_gradient``, normalised by ``np.hypot``, the
     normal ``(-t_y, t_x)`` times the half width): equal exactly."""
-    from vision.measure import _across_k, _offsets_k
+    from vision.measure import _offsets_k
     from vision.sampling import unit_step_gradient
 
     rng = np.random.default_rng(45)
@@ -143,8 +90,3 @@ def test_the_strip_offsets_are_the_numpy_forms() -> None:
     halves = np.array([h for _, h in strips])
     got = _offsets_k(np.vstack(lines), sizes, halves)
     np.testing.assert_array_equal(got, want)
-    n = sizes[-1]
-    px, off = want[:n], want[n:]
-    np.testing.assert_array_equal(
-        _across_k(got), np.hypot(off[:, 0] - px[:, 0], off[:, 1] - px[:, 1])
-    )
