@@ -368,21 +368,32 @@ def _scan_kernel(
             buf[j, k] = _PAD_LEVEL
             buf[j, pad + m + k] = -_PAD_LEVEL
     for i in range(n):
-        ln = lines[i]
-        for k in range(m):
-            r = min(top[i] + k, extent - 1)
-            v = np.int16(image[r, ln] if columns else image[ln, r])
-            buf[i, pad + k] = v
-            buf[n + i, pad + k] = -v
+        # samples past the image's end repeat its last pixel
+        inside = min(m, extent - top[i])
+        if columns:
+            for k in range(m):
+                v = np.int16(image[top[i] + min(k, inside - 1), lines[i]])
+                buf[i, pad + k] = v
+                buf[n + i, pad + k] = -v
+        else:  # a contiguous run of one image row (a loop LLVM vectorises)
+            row = image[lines[i]]
+            first = top[i]
+            for k in range(inside):
+                v = np.int16(row[first + k])
+                buf[i, pad + k] = v
+                buf[n + i, pad + k] = -v
+            for k in range(inside, m):
+                v = np.int16(row[extent - 1])
+                buf[i, pad + k] = v
+                buf[n + i, pad + k] = -v
     # Per line: its strip's sample count (its far background's end).
     ends = np.empty(n, dtype=np.intp)
     for s in range(nb):
         for i in range(bounds[s], bounds[s + 1]):
             ends[i] = 2 * reaches[s] + 1
     level_in = np.empty(n)
-    level_out = np.empty(n)
     diff_ends = np.empty(n)  # far sum - near sum (the pooled tilt's input)
-    vals = np.empty(2 * margin)
+    ends_vals = np.empty((2 * margin, n), dtype=np.int32)  # (end sample, line)
     for i in range(n):
         mid = yc[i] - top[i]
         # Mean of the samples k with |k - mid| < half / 2 (integer sums, exact).
@@ -401,12 +412,12 @@ def _scan_kernel(
         for k in range(margin):
             va = buf[i, pad + k]
             vb = buf[i, pad + ends[i] - margin + k]
-            vals[k] = va
-            vals[margin + k] = vb
+            ends_vals[k, i] = va
+            ends_vals[margin + k, i] = vb
             near += va
             far += vb
         diff_ends[i] = far - near
-        level_out[i] = _median_even(vals)
+    level_out = _column_medians_even(ends_vals)
     peak = np.empty(2 * n, dtype=np.intp)
     ramp = np.empty(2 * n)
     steps = m - 1  # a line's steps
@@ -544,21 +555,27 @@ def _median9(p: NDArray[np.float64]) -> float:
 
 
 @kernel
-def _median_even(vals: NDArray[np.float64]) -> float:
-    """``np.median`` of an even number of values (no NaN): the mean of the two middle
-    ones, found by their ranks (counts without branches, ties ranked by position: a
-    sort's data-dependent branches cost more on ten values)."""
-    n = len(vals)
-    lo = 0.0
-    hi = 0.0
-    for p in range(n):
-        v = vals[p]
-        rank = 0
-        for q in range(n):
-            rank += (vals[q] < v) | ((vals[q] == v) & (q < p))
-        lo = v if rank == n // 2 - 1 else lo
-        hi = v if rank == n // 2 else hi
-    return 0.5 * (lo + hi)
+def _column_medians_even(x: NDArray[np.int32]) -> NDArray[np.float64]:
+    """``np.median(x, axis=0)`` of an even number of rows, sorting each column in place:
+    odd-even transposition (as many rounds as rows), each compare-exchange a min and a
+    max along the row pair, a loop over the columns that LLVM vectorises (a column at a
+    time, ten values took 100 compares and 0.1 ms a frame). Exact (integers; the mean of
+    the two middle ones as numpy's)."""
+    rows, n = x.shape
+    if rows == 0:  # (no background samples: level 0, as before)
+        return np.zeros(n)
+    for rnd in range(rows):
+        for a in range(rnd % 2, rows - 1, 2):
+            lo, hi = x[a], x[a + 1]
+            for i in range(n):
+                p, q = lo[i], hi[i]
+                lo[i] = min(p, q)
+                hi[i] = max(p, q)
+    out = np.empty(n)
+    h = rows // 2
+    for i in range(n):
+        out[i] = 0.5 * (np.float64(x[h - 1, i]) + np.float64(x[h, i]))
+    return out
 
 
 @kernel
