@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.jit import kernel
+from vision.sampling import select_kth
 
 
 def edge_moment(
@@ -618,9 +619,12 @@ def _pooled_tilt(rel: NDArray[np.float64]) -> float:
     k = len(rel)
     if k < 8:
         return 0.0
+    # The order statistics lo .. hi by two selections (a sort of the strip's hundreds
+    # of lines was 0.06 ms a frame): q[lo .. hi] then hold them, in another order.
     q = rel.copy()
-    _sort(q)
     lo, hi = k // 4, (3 * k) // 4
+    select_kth(q, lo, k)
+    select_kth(q[lo + 1 :], hi - lo - 1, k - lo - 1)
     t = 0.0
     for i in range(lo, hi + 1):
         t += q[i]
