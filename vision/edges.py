@@ -220,11 +220,13 @@ def _line_geometry(
 def _interp(
     xq: NDArray[np.intp], xp: NDArray[np.float64], fp: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """``np.interp(xq, xp, fp)`` (``xp`` increasing, two points or more), to the bit:
-    its interval (the last ``j`` with ``xp[j] <= x``), its exact hits and its slope
-    formula."""
+    """``np.interp(xq, xp, fp)`` (``xp`` and ``xq`` increasing, two points or more), to
+    the bit: its interval (the last ``j`` with ``xp[j] <= x``), its exact hits and its
+    slope formula. The intervals found by one walk along both (a bisection for each
+    query was half of the scan lines' geometry)."""
     n = len(xp)
     out = np.empty(len(xq))
+    j = 0
     for i in range(len(xq)):
         xv = np.float64(xq[i])
         if xv > xp[n - 1]:
@@ -233,14 +235,8 @@ def _interp(
         if xv < xp[0]:
             out[i] = fp[0]
             continue
-        lo, hi = 0, n  # the first index with xp > xv, by bisection
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if xv < xp[mid]:
-                hi = mid
-            else:
-                lo = mid + 1
-        j = lo - 1
+        while j + 1 < n and xp[j + 1] <= xv:  # (xq increasing: j never goes back)
+            j += 1
         if j == n - 1 or xp[j] == xv:
             out[i] = fp[j]
             continue
@@ -365,28 +361,31 @@ def _scan_kernel(
     extent = image.shape[0] if columns else image.shape[1]
     buf = np.empty((2 * n, m + 2 * pad), dtype=np.int16)
     for j in range(2 * n):
+        head, tail = buf[j, :pad], buf[j, pad + m :]
         for k in range(pad):
-            buf[j, k] = _PAD_LEVEL
-            buf[j, pad + m + k] = -_PAD_LEVEL
+            head[k] = _PAD_LEVEL
+            tail[k] = -_PAD_LEVEL
     for i in range(n):
-        # samples past the image's end repeat its last pixel
+        # Samples past the image's end repeat its last pixel. Each loop on views, its
+        # index from 0: numba's negative-index fix-up on ``pad + k`` kept it scalar.
         inside = min(m, extent - top[i])
+        pos, neg = buf[i, pad : pad + m], buf[n + i, pad : pad + m]
         if columns:
+            col = image[top[i] :, lines[i]]
             for k in range(m):
-                v = np.int16(image[top[i] + min(k, inside - 1), lines[i]])
-                buf[i, pad + k] = v
-                buf[n + i, pad + k] = -v
+                v = np.int16(col[min(k, inside - 1)])
+                pos[k] = v
+                neg[k] = -v
         else:  # a contiguous run of one image row (a loop LLVM vectorises)
-            row = image[lines[i]]
-            first = top[i]
+            run = image[lines[i], top[i] :]
             for k in range(inside):
-                v = np.int16(row[first + k])
-                buf[i, pad + k] = v
-                buf[n + i, pad + k] = -v
+                v = np.int16(run[k])
+                pos[k] = v
+                neg[k] = -v
             for k in range(inside, m):
-                v = np.int16(row[extent - 1])
-                buf[i, pad + k] = v
-                buf[n + i, pad + k] = -v
+                v = np.int16(run[inside - 1])
+                pos[k] = v
+                neg[k] = -v
     # Per line: its strip's sample count (its far background's end).
     ends = np.empty(n, dtype=np.intp)
     for s in range(nb):
