@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.jit import kernel
-from vision.sampling import select_kth
+from vision.sampling import median_in_place, select_kth
 
 
 def edge_moment(
@@ -886,15 +886,13 @@ def _subsample(bounds: NDArray[np.intp], ok: NDArray[np.bool_]) -> NDArray[np.in
 
 @kernel
 def _median_of(x: NDArray[np.float64], idx: NDArray[np.intp]) -> float:
-    """``np.median(x[idx])`` (``idx`` not empty; no NaN)."""
+    """``np.median(x[idx])`` (``idx`` not empty; no NaN), by selection (a sort of the
+    width's subsample, up to 96 values a block, was 0.02 ms a frame)."""
     k = len(idx)
     a = np.empty(k)
     for q in range(k):
         a[q] = x[idx[q]]
-    _sort(a)
-    if k % 2:
-        return a[k // 2]
-    return 0.5 * (a[k // 2 - 1] + a[k // 2])
+    return median_in_place(a)
 
 
 _ROOT2PI = math.sqrt(2 * math.pi)
