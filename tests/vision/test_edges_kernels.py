@@ -2,20 +2,23 @@
 (tests/vision/edges_reference.py), on seeded synthetic strips unlike beambench's frames:
 the same points kept and dropped, and the same positions.
 
-Two comparisons. With the reference's single-precision exp set to the kernels' own (the C
-library's), every number is equal but for the pooled light tilt's sums, which the kernels
-add in another order (1e-12 px covers that: a tilt of ~1e-4 per sample summed over a few
-hundred lines, rounded at 1e-16 relative, moves an edge by ~1e-15 px; the edges are
-within 1e3 px). With numpy's own exp, which differs in the last place (6e-8 relative) on
-~40 % of its arguments, the erf fit's positions may move by about that much of a
-step's size times the residual it weights (~1e-7 px), and a line near the fit's
-convergence test (1e-3 px) may take its third step or not (~1e-4 px): 1e-3 px bounds
-both, a tenth of the fit's own noise on a sharp edge."""
+Two comparisons. With the reference's single-precision exp set to the kernels' own
+(:func:`vision.edges._exp32`), every number is equal but for the pooled light tilt's
+sums, which the kernels add in another order (1e-12 px covers that: a tilt of ~1e-4 per
+sample summed over a few hundred lines, rounded at 1e-16 relative, moves an edge by
+~1e-15 px; the edges are within 1e3 px). With numpy's own exp, which differs from the
+kernels' by up to 2 ulp (1.2e-7 relative; it is within 2.4 ulp of the exact value, the
+kernels' within 0.5) on ~1/3 of the fit's arguments, the erf fit's positions may move by
+about that much of a step's size times the residual it weights (~1e-7 px), and a line
+near the fit's convergence test (1e-3 px) may take its third step or not (~1e-4 px):
+1e-3 px bounds both, a tenth of the fit's own noise on a sharp edge."""
 
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterator
+from decimal import Decimal, localcontext
 from typing import Any
 
 import numpy as np
@@ -25,10 +28,12 @@ from scipy.special import ndtr
 
 from tests.vision import edges_reference as ref
 from vision.edges import (
-    _erf_step,
+    _EXP2_TABLE,
+    _column_medians_even,
+    _erf_steps,
+    _exp32_of,
     _interp,
     _median9,
-    _median_even,
     _ndtr_from_weight,
     _scan_lines,
     _smoothed,
@@ -39,16 +44,11 @@ from vision.edges import (
 ESTIMATORS = ("moment", "area", "erf", "gauss3")
 
 
-@njit(cache=False)
-def _exp32_into(x: np.ndarray, out: np.ndarray) -> None:  # the kernels' exp
-    for i in range(x.size):
-        out.flat[i] = np.exp(x.flat[i])
-
-
-def _kernel_exp(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def _kernel_exp(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:  # the kernels' exp
+    y = _exp32_of(np.ascontiguousarray(x, dtype=np.float32))
     if out is None:
-        out = np.empty_like(x)
-    _exp32_into(x, out)
+        return y
+    out[...] = y
     return out
 
 
@@ -184,10 +184,86 @@ def test_erf_step_is_the_numpy_step(same_exp: None) -> None:
         dc0, _ = fit.step(c + centre, centre, s, joint=False)
         dc1, ds1 = fit.step(c + centre, centre, s, joint=True)
         offs = np.arange(-half, half + 1, dtype=np.float32)
-        v32 = np.ascontiguousarray(v.T.astype(np.float32))
-        for i in range(n):
-            got = _erf_step(v32[i], offs, amp[i], sign, c[i] + centre[i], centre[i], s[i])
-            assert got == (dc0[i], dc1[i], ds1[i])
+        v32 = v.astype(np.float32)
+        got0, got1, got_s = np.empty(n), np.empty(n), np.empty(n)
+        _erf_steps(v32, offs, amp, sign, c + centre, centre, s, False, got0, got_s)
+        _erf_steps(v32, offs, amp, sign, c + centre, centre, s, True, got1, got_s)
+        np.testing.assert_array_equal(got0, dc0)
+        np.testing.assert_array_equal(got1, dc1)
+        np.testing.assert_array_equal(got_s, ds1)
+
+
+@njit(cache=False)
+def _libm_exp_into(x: np.ndarray, out: np.ndarray) -> None:  # the C library's expf
+    for i in range(x.size):
+        out.flat[i] = np.exp(x.flat[i])
+
+
+def _ulps(got: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """|got - exp(x)| in units of the last place of exp(x) rounded to single precision
+    (subnormal spacing below 2^-126); exp(x) in double (its error, ~1e-16, is 1e-9 of a
+    single-precision ulp)."""
+    exact = np.exp(x.astype(np.float64))
+    return np.abs(got.astype(np.float64) - exact) / np.spacing(exact.astype(np.float32))
+
+
+def test_exp32_is_the_exact_value_rounded_and_within_an_ulp_of_the_c_librarys() -> None:
+    """The fit's arguments -u^2 / 2 are <= 0, down to ~-240 (|u| up to ~6.5 samples
+    over the narrowest width, 0.3): seeded arguments from 0 to the last subnormal
+    result (below: test_exp32_at_its_edges), and positive ones. Bound 0.50005 ulp: the
+    exact value's rounding (0.5) plus the method's relative error (1.2e-12 from the
+    Taylor polynomial, ~1e-15 from the rounding of the double arithmetic) over a
+    single-precision ulp (>= 6e-8 of the value): 2e-5 ulp, doubled. The C library's
+    expf (the fit's exp before; glibc's is within 0.502 ulp of the exact value, 0.5016
+    measured here) and this one are then single-precision values within 1.002 ulp of
+    each other: at most 1 ulp apart."""
+    rng = np.random.default_rng(19)
+    x = np.concatenate(
+        [
+            rng.uniform(-90.0, 0.0, 400_000),
+            rng.uniform(-0.5, 0.0, 100_000),  # near 0: results near 1, the densest ulps
+            rng.uniform(-103.97, -87.0, 100_000),  # subnormal results
+            rng.uniform(0.0, 88.7, 50_000),
+        ]
+    ).astype(np.float32)
+    got = _exp32_of(x)
+    assert _ulps(got, x).max() <= 0.50005
+    libm = np.empty_like(x)
+    _libm_exp_into(x, libm)
+    spacing = np.spacing(np.minimum(got, libm))
+    assert np.all(np.abs(got.astype(np.float64) - libm) <= spacing)
+
+
+def test_exp32_at_its_edges() -> None:
+    """0 and the smallest arguments give 1 exactly; the subnormal results to the last one,
+    then 0 (underflow: the exact value below half the smallest subnormal, 2^-150, at
+    -103.972), and 0 for large negative arguments and -inf; inf past 88.7228 (ln of
+    the largest float); NaN for NaN."""
+    f = np.float32
+    x = np.array(
+        [0.0, -0.0, -1e-30, -1e-7, 1e-7, -87.33, -87.34, -100.0, -103.27, -103.28],
+        dtype=f,
+    )
+    got = _exp32_of(x)
+    assert np.all(got[:3] == 1.0)
+    assert _ulps(got, x).max() <= 0.50005
+    tiny = np.nextafter(f(0.0), f(1.0))
+    boundary = f(math.log(2.0**-150))  # -103.972...
+    assert _exp32_of(np.array([np.nextafter(boundary, f(0.0))], dtype=f))[0] == tiny
+    under = np.array([np.nextafter(boundary, f(-200.0)), -104.0, -110.0, -1e30, -np.inf])
+    assert np.all(_exp32_of(under.astype(f)) == 0.0)
+    assert np.isfinite(_exp32_of(np.array([88.7228], dtype=f))[0])
+    over = np.array([88.7229, 89.0, 1e30, np.inf], dtype=f)
+    assert np.all(_exp32_of(over) == np.inf)
+    assert np.isnan(_exp32_of(np.array([np.nan], dtype=f))[0])
+
+
+def test_exp32s_table_is_two_to_the_k_over_32_rounded() -> None:
+    with localcontext() as ctx:
+        ctx.prec = 40
+        want = [float(Decimal(2) ** (Decimal(k) / 32)) for k in range(32)]
+    bits = _EXP2_TABLE + (np.arange(32, dtype=np.uint64) << np.uint64(47))
+    np.testing.assert_array_equal(bits.view(np.float64), want)
 
 
 def test_normal_cdf_is_the_numpy_polynomial() -> None:
@@ -213,13 +289,13 @@ def test_median_of_nine_on_ties_and_random_values() -> None:
         assert _median9(x) == np.median(x)
 
 
-def test_median_of_an_even_count_on_ties_and_random_values() -> None:
+def test_column_medians_on_ties_and_random_values() -> None:
     rng = np.random.default_rng(6)
-    for n in (2, 4, 10, 12):
-        for x in itertools.chain(
-            rng.integers(0, 4, (200, n)).astype(float), rng.normal(size=(200, n))
-        ):
-            assert _median_even(x) == np.median(x)
+    for rows in (2, 4, 8, 10, 12):
+        for x in (rng.integers(0, 4, (rows, 300)), rng.integers(-255, 256, (rows, 301))):
+            want = np.median(x, axis=0)
+            got = _column_medians_even(x.astype(np.int32))  # (sorts its argument)
+            np.testing.assert_array_equal(got, want)
 
 
 def test_interp_is_numpys_to_the_bit() -> None:
