@@ -25,11 +25,14 @@ from vision.errors import (
 # gray image is 268 MB, so a forged header cannot make the decoder allocate more
 MAX_SIDE_PX = 16384
 
-#: The restart interval :func:`encode` writes into JPEGs (MCUs per segment; 16 MCUs are
-#: 128 px of one 8-pixel row of a gray image, a 2048 px row 16 segments), so that the
+#: The restart interval :func:`encode` writes into JPEGs (MCUs per segment; 4 MCUs are
+#: 32 px of one 8-pixel row of a gray image, a 2048 px row 64 segments), so that the
 #: parts of a frame that are measured can be decoded alone (:mod:`vision.jpeg_regions`).
-#: The markers cost 2 bytes and the padding to a byte boundary each.
-RST_INTERVAL_MCU = 16
+#: The markers cost 2 bytes, the padding to a byte boundary and the DC restarting each:
+#: a nominal 2048 x 1536 frame at quality 90 is 360 kB (326 kB at 16 MCUs, 314 without);
+#: the reader decodes 21 % of its segments (28 % at 16 MCUs: the search circles' segments
+#: alone are 10 % of the frame at 16, 3 % at 4). 4 divides by the previews' reductions.
+RST_INTERVAL_MCU = 4
 
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # JPEG start-of-frame markers (baseline, progressive, lossless, ...): not DHT, JPG or DAC

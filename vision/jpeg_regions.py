@@ -74,8 +74,7 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     """The segment layout of ``data``, or None when it cannot be decoded in parts (not a
     JPEG, not baseline, not one component, no restart interval, an interval that does
     not divide the MCU row, restart markers missing, out of order or damaged)."""
-    buf = np.frombuffer(data, dtype=np.uint8)
-    got = _parse_layout(buf, (buf == 0xFF).view(np.uint8), MAX_SIDE_PX)
+    got = _parse_layout(np.frombuffer(data, dtype=np.uint8), MAX_SIDE_PX)
     if got[0] == 0:
         return None
     width, height, interval, sof_at, scan_at, starts, ends = got
@@ -96,7 +95,7 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
 
 @kernel
 def _parse_layout(
-    buf: NDArray[np.uint8], is_ff: NDArray[np.uint8], max_side: int
+    buf: NDArray[np.uint8], max_side: int
 ) -> tuple[int, int, int, int, int, NDArray[np.intp], NDArray[np.intp]]:
     """:func:`jpeg_layout`'s parse: ``(width, height, interval, offset of the frame
     header's size, offset of the scan, starts, ends)``, width 0 when there is none.
@@ -153,13 +152,14 @@ def _parse_layout(
         return nothing
     n_seg = mcu_cols // interval * mcu_rows
     # Every 0xFF after the scan's header is followed by 0x00 (stuffing), RSTn (0xD0..0xD7
-    # in turn from RST0) or the scan's end, which must be EOI. Where the 0xFF bytes are
-    # (``is_ff``, 1 or 0 a byte, numpy's vectorised comparison) is read eight bytes at a
-    # time (little-endian words), a word's in order (its lowest bit first): the markers
-    # come at random, so branching byte by byte would cost more in mispredicted
-    # branches than the work.
+    # in turn from RST0) or the scan's end, which must be EOI. The data is read eight
+    # bytes at a time (little-endian words), the 0xFF bytes of a word found at once
+    # (the zero bytes of its complement, exactly: bit 8j + 7 set where byte j is 0xFF)
+    # and taken in order (the lowest first): the markers come at random, so branching
+    # byte by byte would cost more in mispredicted branches than the work.
     nw = n // 8
-    words = is_ff[: 8 * nw].view(np.uint64)
+    words = buf[: 8 * nw].view(np.uint64)
+    low7 = np.uint64(0x7F7F7F7F7F7F7F7F)
     byte_of = np.uint64(0x0001020304050607)  # (bit 8j) * this >> 56: j
     starts = np.empty(n_seg, dtype=np.intp)
     ends = np.empty(n_seg, dtype=np.intp)
@@ -168,11 +168,13 @@ def _parse_layout(
     stop = -1
     for k in range(scan_at // 8, (n - 2) // 8 + 1):
         if k < nw:
-            ff = words[k]
+            x = ~words[k]
+            ff = ~(((x & low7) + low7) | x | low7) >> np.uint64(7)
         else:  # the last bytes, short of a word
             ff = np.uint64(0)
             for j in range(n - 8 * k):
-                ff |= np.uint64(is_ff[8 * k + j]) << np.uint64(8 * j)
+                if buf[8 * k + j] == 0xFF:
+                    ff |= np.uint64(1) << np.uint64(8 * j)
         if ff == 0:
             continue
         while ff:
@@ -432,6 +434,49 @@ def paste(
     _put_segments(canvas, layout.per_row, seg, pixels, 1, seg_h, seg_w)
 
 
+def fill_segments(
+    layout: JpegLayout, canvas: NDArray[np.uint8], hit: NDArray[np.bool_], fill: int
+) -> None:
+    """Set the segments of a :func:`blank_canvas` where ``hit`` (one flag a segment, raster
+    order) to ``fill`` (in place): a canvas used again is blanked where it was decoded, a
+    fraction of a new one's cost."""
+    seg_w, seg_h = layout.segment_px
+    _check_canvas(layout, canvas)
+    flags = np.asarray(hit)
+    if flags.dtype != np.bool_ or flags.shape != (len(layout.starts),):
+        raise ParameterError("hit", f"must be {len(layout.starts)} bools, got {flags.shape}")
+    if not 0 <= fill <= 255:
+        raise ParameterError("fill", f"must be 0..255, got {fill!r}")
+    _fill_segments(canvas, layout.per_row, np.ascontiguousarray(flags), int(fill), seg_h, seg_w)
+
+
+@kernel
+def _fill_segments(
+    canvas: NDArray[np.uint8],
+    per_row: int,
+    hit: NDArray[np.bool_],
+    fill: int,
+    seg_h: int,
+    seg_w: int,
+) -> None:
+    """Set the segments where ``hit`` of ``canvas`` (``per_row`` to a row) to ``fill``,
+    each run of them in a row at once."""
+    value = np.uint8(fill)
+    for row in range(hit.size // per_row):
+        first = row * per_row
+        j = 0
+        while j < per_row:
+            if not hit[first + j]:
+                j += 1
+                continue
+            end = j + 1
+            while end < per_row and hit[first + end]:
+                end += 1
+            for y in range(row * seg_h, row * seg_h + seg_h):
+                canvas[y, j * seg_w : end * seg_w] = value  # a row's run: one memset
+            j = end
+
+
 def image_of(layout: JpegLayout, canvas: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """The image's own size cut from a canvas (the canvas itself when it is that size)."""
     if canvas.shape == (layout.height_px, layout.width_px):
@@ -484,6 +529,7 @@ __all__ = [
     "decode_reduced",
     "decode_region",
     "decode_segments",
+    "fill_segments",
     "image_of",
     "jpeg_layout",
     "paste",

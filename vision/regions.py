@@ -46,6 +46,7 @@ from vision.jpeg_regions import (
     blank_canvas,
     decode_into,
     decode_segments,
+    fill_segments,
     image_of,
     jpeg_layout,
     paste,
@@ -78,6 +79,10 @@ _HUB_BACK_M = 0.3
 #: How far (beam widths) the beam's and the hub's centre lines are allowed for off the
 #: chord through the crossings in the first decode (farther: the check decodes the rest).
 _OFF_CHORD_WIDTHS = 2.0
+#: Behind the pivot the hub's axis leaves the chord at up to this angle (rad; the
+#: beam's slope at its root against the chord: up to ~10 degrees on the fast set, under
+#: 5 on the others): the band there is a fan of three, the chord's and this either side.
+_HUB_FAN_RAD = math.radians(12.0)
 
 
 @dataclass
@@ -107,6 +112,10 @@ class RegionReader:
             cal.to_px, cal.beam_length_m, cal.beam_width_m, measurer.px_m
         )
         self._ring_segs: dict[tuple[int, int, int], NDArray[np.intp]] = {}
+        #: The last frame's canvas, the level it was blanked to and its segments decoded.
+        self._canvas: NDArray[np.uint8] | None = None
+        self._canvas_level = 0
+        self._canvas_done = np.zeros(0, dtype=bool)
         #: The track: how far behind the pivot the previous frame's hub reached (m).
         self.hub_back_m: float | None = None
         self.hub_w_m = math.nan
@@ -149,28 +158,32 @@ class RegionReader:
         # The background's level: the circles' median sample (the beam covers a few % of
         # them); what is not decoded is that constant.
         level = int(_median_sampled(strip, 2, 4))
-        canvas = blank_canvas(layout, level)
+        # What was decoded, by segment (whole segments are decoded, the circles' first:
+        # none of them again where the band overlaps them).
+        canvas, stale = self._take_canvas(layout, level)
         paste(layout, canvas, ring_segs, strip)
+        done = np.zeros(layout.per_row * layout.mcu_rows, dtype=bool)
+        done[ring_segs] = True
+        # the crossings read the circles' pixels alone (the bilinear samples' four), all
+        # decoded: what the last frame left elsewhere is blanked after the band's decode
         image = image_of(layout, canvas)
         found = crossings(image, self._circles)
         if found is None:
             return None
         p1, p2, shown = found
         w0 = outward_width(shown, self.measurer.calibration.beam_width_m)
-        # What was decoded, by segment (whole segments are decoded, the circles' first:
-        # none of them again where the band overlaps them).
-        done = np.zeros(layout.per_row * layout.mcu_rows, dtype=bool)
-        done[ring_segs] = True
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
             new = _missing(want, done, layout.interval)
             if new.size:
+                done[new] = True
                 try:
                     decode_into(layout, canvas, new)
                 except ValueError:
                     return None
-                done[new] = True
                 self.stats.regrown += attempt
+            if attempt == 0:
+                self._blank_stale(layout, canvas, stale, done, level)
             # the crossings read the circles' blocks only, decoded first: as found
             m = self.measurer.measure(image_of(layout, canvas), crossings_m=found)
             if not m.ok:
@@ -184,6 +197,47 @@ class RegionReader:
             # once it is decoded), and measure again.
             want = read | self._predicted(p1, p2, w0, shape, behind_m=self._length)
         return None
+
+    def _take_canvas(
+        self, layout: JpegLayout, level: int
+    ) -> tuple[NDArray[np.uint8], NDArray[np.bool_] | None]:
+        """The canvas for this frame and the segments of it that may not hold ``level``
+        (None: none): the last frame's used again (what it decoded, or all of it when
+        its level was another), blanked by :meth:`_blank_stale` once this frame's own
+        segments are decoded (a new canvas costs ~0.1 ms of a ~1.5 ms decode, blanking
+        the last frame's band anew where this one decodes it again is wasted)."""
+        n_seg = layout.per_row * layout.mcu_rows
+        seg_w, seg_h = layout.segment_px
+        canvas, old = self._canvas, self._canvas_done
+        self._canvas = None  # until blanked: a frame given up half way leaves it stale
+        if (
+            canvas is None
+            or old.size != n_seg
+            or canvas.shape
+            != (
+                layout.mcu_rows * seg_h,
+                layout.per_row * seg_w,
+            )
+        ):
+            return blank_canvas(layout, level), None
+        if level == self._canvas_level:
+            return canvas, old
+        return canvas, np.ones(n_seg, dtype=bool)
+
+    def _blank_stale(
+        self,
+        layout: JpegLayout,
+        canvas: NDArray[np.uint8],
+        stale: NDArray[np.bool_] | None,
+        done: NDArray[np.bool_],
+        level: int,
+    ) -> None:
+        """Set what the last frame left and this one did not decode to ``level``; the
+        canvas is then this frame's: ``level`` wherever not ``done`` (which a regrow
+        adds to in place)."""
+        if stale is not None:
+            fill_segments(layout, canvas, stale & ~done, level)
+        self._canvas, self._canvas_level, self._canvas_done = canvas, level, done
 
     def lose_track(self) -> None:
         """Forget the previous frame: the next is searched as the first of a run (a frame
@@ -261,11 +315,19 @@ class RegionReader:
             # running from the clamp, somewhere on the inward band, to the tip
             half_out += self.smear_m
             half_in = max(half_in, 0.75 * w + scans + self.smear_m)
+        # behind the pivot (the plane's origin) along the hub's possible axes (the fan's
+        # sides are those axes: no room off them)
+        half_fan = max(half, half_in - _OFF_CHORD_WIDTHS * w)
+        fan_len = behind + 3 * _STEP_IN_WIDTHS * w
+        c, s = math.cos(_HUB_FAN_RAD), math.sin(_HUB_FAN_RAD)
+        fan = [np.array([[c, -s], [s, c]]) @ -d0, np.array([[c, s], [-s, c]]) @ -d0]
         return self._tubes(
             shape,
             [
                 (np.array([p2, p2 + out_len * d0]), half_out),
                 (np.array([p1, p1 - in_len * d0]), half_in),
+                (np.array([np.zeros(2), fan_len * fan[0]]), half_fan),
+                (np.array([np.zeros(2), fan_len * fan[1]]), half_fan),
             ],
         )
 
@@ -563,14 +625,25 @@ def _missing(blocks: NDArray[np.bool_], done: NDArray[np.bool_], interval: int) 
     ``s * interval`` to ``(s + 1) * interval`` in raster order) and not ``done``."""
     out = np.empty(done.size, dtype=np.intp)
     n = 0
-    flat = blocks.ravel()
-    k = np.uint64(interval)
-    for seg in range(done.size):  # a segment's blocks are interval in a row of the mask
-        at = np.uint64(seg) * k  # unsigned offsets: no wraparound checks
-        hit = False
-        for c in range(k):
-            hit |= flat[at + c]  # no branch per block: an OR the compiler vectorises
-        if hit and not done[seg]:
-            out[n] = seg
-            n += 1
+    flat = blocks.ravel().view(np.uint8)
+    k = interval
+    # a segment's blocks are ``interval`` bytes in a row of the mask: one 4-byte word
+    # at beambench's own interval (vision.codec.RST_INTERVAL_MCU), else byte by byte
+    # with no branch (at 4 blocks, 8 times slower)
+    if k == 4:
+        words = flat.view(np.uint32)
+        for seg in range(done.size):
+            if words[seg] != 0 and not done[seg]:
+                out[n] = seg
+                n += 1
+    else:
+        ku = np.uint64(k)
+        for seg in range(done.size):
+            at = np.uint64(seg) * ku
+            hit = False
+            for c in range(ku):
+                hit |= flat[at + c] != 0  # no branch per block: an OR the compiler vectorises
+            if hit and not done[seg]:
+                out[n] = seg
+                n += 1
     return out[:n]

@@ -193,9 +193,10 @@ def test_damaged_segments_are_a_decode_error_or_damage_in_that_segment_only() ->
             seen_error = True
             continue
         region = np.zeros_like(full, dtype=bool)
+        seg_w, seg_h = lay.segment_px
         for k in (s - 1, s + 1):
             r, c = divmod(k, lay.per_row)
-            region[8 * r : 8 * r + 8, 128 * c : 128 * c + 128] = True
+            region[seg_h * r : seg_h * r + seg_h, seg_w * c : seg_w * c + seg_w] = True
         np.testing.assert_array_equal(got[region], full[region])
         seen_damage = seen_damage or bool(np.any(got != full))
     assert seen_damage or seen_error

@@ -18,6 +18,7 @@ from vision.jpeg_regions import (
     blank_canvas,
     decode_into,
     decode_segments,
+    fill_segments,
     jpeg_layout,
     paste,
     splice,
@@ -264,3 +265,31 @@ def test_pasted_and_decoded_segments_are_the_numpy_forms(interval: int) -> None:
         paste(layout, canvas, np.array([0]), np.zeros((16, seg_w), np.uint8))
     with pytest.raises(ParameterError, match="canvas"):
         decode_into(layout, np.asfortranarray(canvas), np.array([0]))
+
+
+@pytest.mark.parametrize("interval", [1, 4, 16])
+def test_filled_segments_are_the_numpy_forms(interval: int) -> None:
+    """fill_segments sets the flagged segments (runs of them and single ones, the rows'
+    ends) to the value, every other pixel as it was."""
+    h, w = 45, 8 * interval * 6
+    layout = jpeg_layout(encode(_scene(h, w, 3 * interval), "jpeg", 90, interval))
+    assert layout is not None
+    n_all = len(layout.starts)
+    seg_w = 8 * interval
+    rng = np.random.default_rng(interval + 5)
+    for density in (0.0, 0.1, 0.5, 1.0):
+        hit = rng.random(n_all) < density
+        canvas = rng.integers(0, 256, (8 * layout.mcu_rows, layout.per_row * seg_w), np.uint8)
+        want = canvas.copy()
+        blocks = want.reshape(layout.mcu_rows, 8, layout.per_row, seg_w)
+        rows, cols = np.divmod(np.flatnonzero(hit), layout.per_row)
+        blocks[rows, :, cols, :] = 201
+        fill_segments(layout, canvas, hit, 201)
+        np.testing.assert_array_equal(canvas, want)
+    canvas = blank_canvas(layout, 0)
+    with pytest.raises(ParameterError, match="hit"):
+        fill_segments(layout, canvas, np.ones(n_all + 1, dtype=bool), 1)
+    with pytest.raises(ParameterError, match="fill"):
+        fill_segments(layout, canvas, np.ones(n_all, dtype=bool), 256)
+    with pytest.raises(ParameterError, match="canvas"):
+        fill_segments(layout, canvas[:8], np.ones(n_all, dtype=bool), 1)

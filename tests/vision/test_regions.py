@@ -72,6 +72,38 @@ def test_parts_measure_as_the_whole_frame(scene) -> None:
     assert max(reader.stats.decoded_fraction) < 0.6
 
 
+def test_a_canvas_used_again_measures_as_the_whole_frame(scene) -> None:
+    """The reader blanks the last frame's canvas where it was decoded (the same
+    background level) or all of it (another level): every frame as from the whole one,
+    nothing of the frame before left in what this one did not decode."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    brighter = np.clip(frames[1].astype(np.int16) + 40, 0, 255).astype(np.uint8)
+    levels = []
+    for image in (frames[0], frames[3], brighter, frames[2], frames[2]):
+        data = encode(image, "jpeg", 90)
+        got = reader.measure(data)
+        assert got.ok, got.reason
+        _same(got, measurer.measure(decode(data)))
+        levels.append(reader._canvas_level)
+        canvas = reader._canvas
+        assert canvas is not None
+        left = canvas[~np.repeat(np.repeat(_done_blocks(reader), 8, 0), 8, 1)]
+        assert np.all(left == reader._canvas_level)  # only this frame's decode
+    assert reader.stats.parts == 5
+    assert levels[2] != levels[1] and levels[3] != levels[2]  # both ways blanked
+
+
+def _done_blocks(reader: RegionReader) -> np.ndarray:
+    """The reader's decoded segments as a [block row, block col] mask."""
+    canvas = reader._canvas
+    assert canvas is not None
+    rows = canvas.shape[0] // 8
+    per_row = reader._canvas_done.size // rows
+    return np.repeat(reader._canvas_done.reshape(rows, per_row), canvas.shape[1] // 8 // per_row, 1)
+
+
 @pytest.mark.parametrize("interval", [4, 5, 8, 40])
 def test_other_restart_intervals_measure_as_the_whole_frame(scene, interval: int) -> None:
     """A camera writing another restart interval (segments of 4, 5, 8 or 40 MCUs of the

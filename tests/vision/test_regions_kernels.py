@@ -224,7 +224,16 @@ def test_median_of_samples_is_numpys() -> None:
 def test_missing_segments_are_the_numpy_forms() -> None:
     """Segments hit by a block and not done: segment_hits(...) & ~done, its indices."""
     rng = np.random.default_rng(11)
-    for interval, per_row, rows in ((1, 7, 5), (3, 4, 6), (16, 16, 3), (5, 1, 9)):
+    for interval, per_row, rows in (
+        (1, 7, 5),
+        (2, 5, 4),
+        (3, 4, 6),
+        (4, 9, 3),
+        (8, 3, 5),
+        (16, 16, 3),
+        (24, 2, 3),
+        (5, 1, 9),
+    ):
         for density in (0.0, 0.01, 0.2, 1.0):
             blocks = rng.random((rows, per_row * interval)) < density
             done = rng.random(rows * per_row) < 0.3
