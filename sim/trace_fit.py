@@ -73,7 +73,8 @@ def _gcv(rss: float, n: int, p: int) -> float:
 
 def _lsq_spline(t: FloatArray, y: FloatArray, spacing_s: float) -> tuple[Any, int] | None:
     """Quintic least-squares B-spline with knots ``spacing_s`` apart (the last interval
-    stretched to end at ``t[-1]``), and its number of coefficients; None when the samples
+    stretched to end at ``t[-1]``) of ``y`` (``(n,)``, or ``(n, m)``: a spline of each
+    column, fitted together), and its number of coefficients; None when the samples
     do not support it (a gap wider than a knot interval, too few samples)."""
     from scipy.interpolate import make_lsq_spline
 
@@ -97,21 +98,36 @@ def _lsq_spline(t: FloatArray, y: FloatArray, spacing_s: float) -> tuple[Any, in
     return spline, p
 
 
-def _best_spline(t: FloatArray, y: FloatArray, p_other: int) -> tuple[Any, int, float, float]:
-    """The GCV-best spline of ``y`` (None: no spline), its coefficients, spacing and RSS;
-    ``p_other`` parameters are already spent on the rest of the model."""
+def _best_splines(
+    t: FloatArray, ys: FloatArray, p_others: list[int]
+) -> list[tuple[Any, int, float, float]]:
+    """For each column of ``ys`` (``(n, m)``), the GCV-best spline (None: no spline), its
+    coefficients, spacing and RSS; ``p_others[j]`` parameters are already spent on the
+    rest of column ``j``'s model. The columns share each spacing's fit (one factorisation
+    of the normal equations, one evaluation of the basis): each column's coefficients
+    and values are those a fit of that column alone gives, bit for bit (tested)."""
+    from scipy.interpolate import BSpline
+
     n = t.size
-    best: tuple[Any, int, float, float] = (None, 0, math.inf, float(np.sum(y**2)))
-    best_gcv = _gcv(best[3], n, p_other) if p_other > 0 else math.inf
+    best: list[tuple[Any, int, float, float]] = []
+    best_gcv: list[float] = []
+    for j, p_other in enumerate(p_others):
+        best.append((None, 0, math.inf, float(np.sum(ys[:, j] ** 2))))
+        best_gcv.append(_gcv(best[j][3], n, p_other) if p_other > 0 else math.inf)
     for h in KNOT_SPACINGS_S:
-        fit = _lsq_spline(t, y, h)
+        fit = _lsq_spline(t, ys, h)
         if fit is None:
             continue
         spline, p = fit
-        rss = float(np.sum((spline(t) - y) ** 2))
-        g = _gcv(rss, n, p_other + p)
-        if g < best_gcv:
-            best, best_gcv = (spline, p, h, rss), g
+        values = spline(t)
+        for j, p_other in enumerate(p_others):
+            rss = float(np.sum((values[:, j] - ys[:, j]) ** 2))
+            g = _gcv(rss, n, p_other + p)
+            if g < best_gcv[j]:
+                column = BSpline.construct_fast(
+                    spline.t, np.ascontiguousarray(spline.c[:, j]), spline.k
+                )
+                best[j], best_gcv[j] = (column, p, h, rss), g
     return best
 
 
@@ -296,18 +312,8 @@ class FittedTraceDrive:
         tc = t - self._t_ref_s
         n = t.size
 
-        # the spline alone
-        spline, p_s, h_s, rss_s = _best_spline(t, y, 0)
-        best_gcv = _gcv(rss_s, n, p_s) if spline is not None else math.inf
-        self._omega = 0.0
-        # the harmonics' noise (see harmonic_uncertainty); NaN without harmonics; with a
-        # spline on top, from the residual of both (below)
-        self.coefficient_var_rad2 = math.nan
-        self.dropped_power_rad2 = np.zeros(0)
-        self._coef = np.zeros(1)  # the spline carries the mean
-        self._spline = spline
-        kind, n_harm, h_best, p_best, rss_best = "spline", 0, h_s, p_s, rss_s
-
+        # the harmonics first, so that the spline of their residual shares each spacing's
+        # fit with the spline alone (:func:`_best_splines`)
         omega = _fundamental(tc, y)
         if omega is not None:
             m_max = max(1, min(MAX_HARMONICS, int(2.0 * math.pi * MAX_HARMONIC_HZ / omega)))
@@ -318,7 +324,24 @@ class FittedTraceDrive:
             coef = np.linalg.solve(b.T @ b, b.T @ y)
             resid = y - b @ coef
             p_h = 2 * m_best + 2  # the frequency is a parameter too
-            r_spline, r_p, r_h, r_rss = _best_spline(t, resid, p_h)
+            fits = _best_splines(t, np.column_stack((y, resid)), [0, p_h])
+        else:
+            fits = _best_splines(t, y[:, None], [0])
+
+        # the spline alone
+        spline, p_s, h_s, rss_s = fits[0]
+        best_gcv = _gcv(rss_s, n, p_s) if spline is not None else math.inf
+        self._omega = 0.0
+        # the harmonics' noise (see harmonic_uncertainty); NaN without harmonics; with a
+        # spline on top, from the residual of both (below)
+        self.coefficient_var_rad2 = math.nan
+        self.dropped_power_rad2 = np.zeros(0)
+        self._coef = np.zeros(1)  # the spline carries the mean
+        self._spline = spline
+        kind, n_harm, h_best, p_best, rss_best = "spline", 0, h_s, p_s, rss_s
+
+        if omega is not None:
+            r_spline, r_p, r_h, r_rss = fits[1]
             g = _gcv(r_rss, n, p_h + r_p)
             if g < best_gcv:
                 best_gcv = g

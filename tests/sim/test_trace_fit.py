@@ -189,3 +189,36 @@ def test_the_spline_passband_is_what_a_least_squares_spline_keeps(spacing_s: flo
             # the share of power kept: |response|^2 where the fit is a scaled copy
             kept.append(np.sum(fit[mid] * y[mid]) / np.sum(y[mid] ** 2))
         assert np.mean(kept) == pytest.approx(spline_passband(f, spacing_s), abs=0.02), v
+
+
+def test_splines_fitted_together_are_each_ones_alone_bit_for_bit() -> None:
+    # the spline alone and the spline of the harmonics' residual share each spacing's
+    # fit (one factorisation, one evaluation); each column must be what a fit of it
+    # alone (scipy's make_lsq_spline of a 1-D trace, as before) gives, bit for bit
+    from scipy.interpolate import make_lsq_spline
+
+    from sim.trace_fit import SPLINE_DEGREE, _best_splines, _gcv, _lsq_spline
+
+    rng = np.random.default_rng(23)
+    t = np.cumsum(rng.uniform(0.002, 0.003, size=3000))  # uneven, ~7.5 s
+    a = np.sin(2.1 * t) + 0.3 * np.sin(7.3 * t) + 1e-3 * rng.normal(size=t.size)
+    b = 0.01 * np.sin(0.4 * t) + 2e-4 * rng.normal(size=t.size)
+    together = _best_splines(t, np.column_stack((a, b)), [0, 9])
+    for y, p_other, got in ((a, 0, together[0]), (b, 9, together[1])):
+        # the best spacing as a fit of this column alone finds it
+        best, best_g = None, (_gcv(float(np.sum(y**2)), t.size, p_other) if p_other else math.inf)
+        for h in (0.02, 0.03, 0.04, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0):
+            fit = _lsq_spline(t, y, h)
+            assert fit is not None
+            alone = make_lsq_spline(t, y, fit[0].t, SPLINE_DEGREE, method="norm-eq")
+            assert np.array_equal(alone.c, fit[0].c)
+            rss = float(np.sum((alone(t) - y) ** 2))
+            g = _gcv(rss, t.size, p_other + fit[1])
+            if g < best_g:
+                best, best_g = (alone, fit[1], h, rss), g
+        assert best is not None and got[0] is not None
+        assert got[1:] == best[1:]  # coefficients, spacing, RSS (exactly)
+        assert np.array_equal(got[0].t, best[0].t) and np.array_equal(got[0].c, best[0].c)
+        assert np.array_equal(got[0](t).view(np.int64), best[0](t).view(np.int64))
+        d2 = got[0].derivative(2)(t)
+        assert np.array_equal(d2.view(np.int64), best[0].derivative(2)(t).view(np.int64))
