@@ -186,9 +186,15 @@ class StartedWorkers:
     numpy, OpenCV and vision, which then overlaps the reading of the log. Hand it to
     :func:`measure_frames` (which then owns it), or :meth:`close` it."""
 
-    def __init__(self, pool: ProcessPoolExecutor, n_workers: int) -> None:
+    def __init__(
+        self, pool: ProcessPoolExecutor, n_workers: int, kernels_cached: bool = True
+    ) -> None:
         self.pool: ProcessPoolExecutor | None = pool
         self.n_workers = n_workers
+        # whether vision's kernels were cached when the workers started: by the frames,
+        # the calibration may have compiled a few of them, so the cache is no longer
+        # empty while most of the measurement's kernels are still to be compiled
+        self.kernels_cached = kernels_cached
 
     def take(self) -> ProcessPoolExecutor | None:
         pool, self.pool = self.pool, None
@@ -217,6 +223,7 @@ def start_workers(workers: int | None = None) -> StartedWorkers | None:
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     if n_workers <= 1 or _cannot_spawn() is not None:
         return None
+    cached = kernels_cached()
     pool = None
     try:
         pool = _new_pool(n_workers)
@@ -226,7 +233,7 @@ def start_workers(workers: int | None = None) -> StartedWorkers | None:
         if pool is not None:
             _abandon(pool)
         return None
-    return StartedWorkers(pool, n_workers)
+    return StartedWorkers(pool, n_workers, cached)
 
 
 def measure_frames(
@@ -255,12 +262,14 @@ def measure_frames(
     theirs), taken over and stopped with the rest.
     """
     pool = started.take() if started is not None else None
+    cold = None
     if started is not None:
         workers = started.n_workers
+        cold = not started.kernels_cached
     try:
         return _measure_frames(
             frames, calibration, stations_m, method, workers, progress,
-            max_tip_uncertainty_m, decode_parts, on_measured, pool,
+            max_tip_uncertainty_m, decode_parts, on_measured, pool, cold,
         )  # fmt: skip
     finally:
         if pool is not None:
@@ -278,6 +287,7 @@ def _measure_frames(
     decode_parts: bool,
     on_measured: Callable[[list[MeasuredFrame]], None] | None,
     started_pool: ProcessPoolExecutor | None,
+    cold: bool | None = None,
 ) -> list[MeasuredFrame]:
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     limit = max_tip_uncertainty_m
@@ -302,7 +312,7 @@ def _measure_frames(
         rest = itertools.chain(first, itertools.chain.from_iterable(chunks))
         return _measure_here(rest, calibration, stations_m, method, done, limit, decode_parts)
     here: list[MeasuredFrame] = []
-    if not kernels_cached():
+    if (not kernels_cached()) if cold is None else cold:
         # a fresh kernel cache (a first run, or vision changed): the first chunk measured
         # here compiles the kernels once, and the workers load them, instead of each
         # worker compiling them at once

@@ -403,7 +403,8 @@ def _process_run(
         t0 = time.perf_counter()
         stations = tuple(float(x) for x in rig.gauges.positions_m)
         # a fresh kernel cache: the first frames wait ~25 s for numba's compile; say so
-        label = "measure" if kernels_cached() else "measure (compiling, first run: ~25 s)"
+        cached = started.kernels_cached if started is not None else kernels_cached()
+        label = "measure" if cached else "measure (compiling, first run: ~25 s)"
         with Progress(label, total=run.frame_count) as bar:
             frames = measure_frames(
                 iter_frames(log_path),

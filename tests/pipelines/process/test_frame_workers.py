@@ -331,3 +331,36 @@ def test_kernels_are_loaded_ahead_from_the_cache_only(tmp_path: Path) -> None:
 
     assert run("call") == ["0", "0", "0", "0", "6.0"]  # cold: none loaded; compiled by the call
     assert run("load") == ["1", "1", "0", "0"]  # warm: outer loaded, nothing compiled
+
+
+def test_a_cache_cold_when_the_workers_started_measures_the_first_frames_here(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # the calibration (between the workers' start and the frames) compiles a few kernels:
+    # the cache is no longer empty, yet most of the measurement's kernels are still to be
+    # compiled. What counts is the cache when the workers started: the first chunk is
+    # measured here then (compiled once), not by each worker at once
+    state = {"cached": False}
+    monkeypatch.setattr(frames_module, "kernels_cached", lambda: state["cached"])
+    here: list[int] = []
+    real = frames_module._measure_here
+
+    def spy(items, *args, **kwargs):  # type: ignore[no-untyped-def]
+        got = real(items, *args, **kwargs)
+        here.extend(f.sequence for f in got)
+        return got
+
+    monkeypatch.setattr(frames_module, "_measure_here", spy)
+    started = frames_module.start_workers(2)
+    assert started is not None and not started.kernels_cached
+    state["cached"] = True  # the calibration compiled some
+    out = measure_frames(_frames(9), CAL, stations_m=(0.2,), started=started)
+    assert here == list(range(frames_module.CHUNK_FRAMES))
+    assert [f.sequence for f in out] == list(range(9))
+    # workers started with a warm cache measure every frame themselves
+    here.clear()
+    started = frames_module.start_workers(2)
+    assert started is not None and started.kernels_cached
+    out = measure_frames(_frames(9), CAL, stations_m=(0.2,), started=started)
+    assert here == [] and [f.sequence for f in out] == list(range(9))
+    assert _children("multiprocessing.spawn") == []
