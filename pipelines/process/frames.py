@@ -21,10 +21,7 @@ import logging
 import math
 import multiprocessing
 import os
-import pickle
-import sys
 import time
-import types
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
@@ -81,63 +78,6 @@ def _init_worker() -> None:
         cv2.setNumThreads(1)
     except ImportError:  # pragma: no cover - opencv is a dependency
         pass
-    # a worker started ahead (:func:`start_workers`) runs this while the main process
-    # reads the log and calibrates: its first chunk then starts measuring at once
-    load_cached_kernels()
-
-
-def _entry_kernels(prefix: str) -> list[Any]:
-    """The numba kernels of the modules ``prefix`` and ``prefix.*`` imported so far that
-    no other of them calls (those are compiled into their callers' machine code, so
-    loading their own would be wasted), each once."""
-    from numba.core.registry import CPUDispatcher
-
-    kernels: dict[int, Any] = {}
-    for name, module in list(sys.modules.items()):
-        if module is None or not (name == prefix or name.startswith(prefix + ".")):
-            continue
-        for obj in list(vars(module).values()):
-            if isinstance(obj, CPUDispatcher) and obj.__module__ == name:
-                kernels.setdefault(id(obj), obj)
-    called: set[int] = set()
-    for k in kernels.values():
-        globals_ = k.py_func.__globals__
-        for n in _code_names(k.py_func.__code__):
-            if id(globals_.get(n)) in kernels:
-                called.add(id(globals_[n]))
-    return [k for key, k in kernels.items() if key not in called]
-
-
-def _code_names(code: types.CodeType) -> set[str]:
-    names = set(code.co_names)
-    for const in code.co_consts:
-        if isinstance(const, types.CodeType):
-            names |= _code_names(const)
-    return names
-
-
-def load_cached_kernels(prefix: str = "vision") -> int:
-    """Load the machine code of ``prefix``'s kernels (:func:`_entry_kernels`) from their
-    cache now, rather than at each one's first call: ~0.45 CPU s that a worker's first
-    frame would otherwise spend on the critical path. Only what the cache holds for
-    this machine and these sources is loaded: with a fresh cache nothing is (nor
-    compiled: the first frames compile them, :func:`measure_frames`). Returns the number
-    of signatures loaded. Uses numba's cache index (not public API): anything unexpected
-    there loads nothing, and the kernels then load at their first call as before."""
-    n = 0
-    for k in _entry_kernels(prefix):
-        try:
-            cache = k._cache
-            index = cache._cache_file._load_index()
-            codegen = k.targetctx.codegen()
-            sigs = [key[0] for key in index if cache._index_key(key[0], codegen) == key]
-        except (AttributeError, TypeError, OSError, EOFError, pickle.UnpicklingError) as exc:
-            log.debug("kernel cache of %s not read ahead: %s", k.py_func.__qualname__, exc)
-            continue
-        for sig in sigs:
-            k.compile(sig)  # found in the cache: loaded, not compiled
-            n += 1
-    return n
 
 
 def _reader_for(setup: _Setup) -> RegionReader:
@@ -175,8 +115,7 @@ def _measure_chunk(setup: _Setup, items: list[tuple[int, int, bytes]]) -> list[M
 
 def _ready() -> int:
     """A task for a worker started ahead: it has imported this module (and vision,
-    numpy, OpenCV with it) and loaded vision's kernels (:func:`_init_worker`) by the
-    time it runs this."""
+    numpy, OpenCV with it) by the time it runs this."""
     return os.getpid()
 
 

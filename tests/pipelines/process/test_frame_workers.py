@@ -280,59 +280,6 @@ def test_a_fresh_kernel_cache_measures_the_first_frames_here(
     assert _children("multiprocessing.spawn") == []
 
 
-KERNELS_MODULE = """
-import numpy as np
-from vision.jit import kernel
-
-@kernel
-def inner(x):
-    return 2.0 * x
-
-@kernel
-def outer(a):
-    s = 0.0
-    for v in a:
-        s += inner(v)
-    return s
-"""
-
-LOAD_AHEAD = """
-import sys
-sys.path.insert(0, sys.argv[2])
-import probe_kernels as m
-from pipelines.process.frames import load_cached_kernels
-n = load_cached_kernels("probe_kernels")
-hits = {k.__name__: sum(k._cache_hits.values()) for k in (m.inner, m.outer)}
-misses = {k.__name__: sum(k._cache_misses.values()) for k in (m.inner, m.outer)}
-print(n, hits["outer"], hits["inner"], misses["outer"] + misses["inner"])
-if sys.argv[1] == "call":
-    import numpy as np
-    print(m.outer(np.arange(3.0)))
-"""
-
-
-@pytest.mark.slow
-def test_kernels_are_loaded_ahead_from_the_cache_only(tmp_path: Path) -> None:
-    # a worker loads its kernels' machine code at start-up (:func:`load_cached_kernels`):
-    # with a cold cache nothing, and nothing compiled; with a warm one each kernel that
-    # no other calls (``outer``; ``inner`` is compiled into it), from the cache
-    (tmp_path / "probe_kernels.py").write_text(KERNELS_MODULE)
-
-    def run(what: str) -> list[str]:
-        proc = subprocess.run(
-            [sys.executable, "-c", LOAD_AHEAD, what, str(tmp_path)],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            env={**os.environ, "PYTHONPATH": str(ROOT)},
-        )
-        assert proc.returncode == 0, proc.stderr
-        return proc.stdout.split()
-
-    assert run("call") == ["0", "0", "0", "0", "6.0"]  # cold: none loaded; compiled by the call
-    assert run("load") == ["1", "1", "0", "0"]  # warm: outer loaded, nothing compiled
-
-
 def test_a_cache_cold_when_the_workers_started_measures_the_first_frames_here(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
