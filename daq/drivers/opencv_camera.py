@@ -29,10 +29,12 @@ from daq.records import Frame
 log = logging.getLogger(__name__)
 
 STILL_SUFFIXES = (".jpg", ".jpeg", ".png")
-#: A restart marker every this many MCUs in the JPEGs written: the processing decodes only
-#: the segments between markers that it measures (vision's codec writes the same; other
-#: JPEG readers are unaffected). 16 MCUs: 128 px of an 8-row band of a gray frame.
-JPEG_RST_INTERVAL_MCU = 16
+#: A restart marker every this many MCUs in the JPEGs written: of a gray frame the processing
+#: decodes only the segments between markers that it measures (vision's codec writes the
+#: same interval, ``vision.codec.RST_INTERVAL_MCU``; other JPEG readers are unaffected).
+#: 4 MCUs: 32 px of an 8-row band of a gray frame. A colour frame (what OpenCV gives for a
+#: colour camera) is decoded whole: the processing splits gray JPEGs only.
+JPEG_RST_INTERVAL_MCU = 4
 
 
 def _encode(image: Any, encoding: str, jpeg_quality: int) -> bytes:

@@ -102,3 +102,21 @@ def test_bad_camera_sources_raise_device_errors(tmp_path: Path) -> None:
     broken.write_bytes(b"not a video")
     with pytest.raises(DeviceError, match=r"broken\.avi"):
         VideoFileCamera(broken).start()
+
+
+def test_frames_carry_restart_markers_at_the_interval_the_processing_splits() -> None:
+    # daq may not import vision; the two constants are kept equal here. A gray frame the
+    # driver writes is split by vision's reader at its own interval.
+    from daq.drivers.opencv_camera import JPEG_RST_INTERVAL_MCU, _encode
+    from vision.codec import RST_INTERVAL_MCU
+    from vision.jpeg_regions import jpeg_layout
+
+    assert JPEG_RST_INTERVAL_MCU == RST_INTERVAL_MCU
+    gray = np.random.default_rng(3).integers(0, 255, (64, 96), dtype=np.uint8)
+    layout = jpeg_layout(_encode(gray, "jpeg", 90))
+    assert layout is not None and layout.interval == RST_INTERVAL_MCU
+    # a colour frame carries the markers too (its MCU is 16 x 16 px), and is decoded whole
+    colour = _encode(np.dstack([gray] * 3), "jpeg", 90)
+    dri = colour.index(b"\xff\xdd\x00\x04")
+    assert int.from_bytes(colour[dri + 4 : dri + 6], "big") == RST_INTERVAL_MCU
+    assert jpeg_layout(colour) is None
