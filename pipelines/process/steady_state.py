@@ -117,16 +117,7 @@ def simulate_steady(
             return _simulated_at_each_phase(run, t, direct, copied, check, period_s, change)
     else:
         out = res.rows(inverse[: n_d + copied.size])
-    settings = {
-        **res.settings,
-        "steady_state": {
-            "period_s": period_s,
-            "simulated_s": float(times[-1] - times[0]),
-            "cycle_change_rel": change,
-            **extra,
-        },
-    }
-    return replace(out, time_s=t.copy(), hub_angle_rad=out.hub_angle_rad, settings=settings)
+    return _at_run_times(out, res, t, times, period_s, change, extra)
 
 
 def _simulated_at_each_phase(
@@ -144,12 +135,27 @@ def _simulated_at_each_phase(
     times, inverse = np.unique(want, return_inverse=True)
     res = run(times)
     out = res.rows(inverse[: direct.size + copied.size])
+    return _at_run_times(out, res, t, times, period_s, change, {})
+
+
+def _at_run_times(
+    out: SimResult,
+    res: SimResult,
+    t: np.ndarray,
+    times: np.ndarray,
+    period_s: float,
+    change: float,
+    extra: dict[str, float],
+) -> SimResult:
+    """``out`` (the rows of ``res``, simulated at ``times``, for the run's times ``t``)
+    at those times, with the steady state's settings (``extra``: the interpolation's)."""
     settings = {
         **res.settings,
         "steady_state": {
             "period_s": period_s,
             "simulated_s": float(times[-1] - times[0]),
             "cycle_change_rel": change,
+            **extra,
         },
     }
     return replace(out, time_s=t.copy(), hub_angle_rad=out.hub_angle_rad, settings=settings)
