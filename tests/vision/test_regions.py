@@ -95,6 +95,67 @@ def test_a_canvas_used_again_measures_as_the_whole_frame(scene) -> None:
     assert levels[2] != levels[1] and levels[3] != levels[2]  # both ways blanked
 
 
+def test_damaged_frames_between_good_ones_leave_nothing_in_the_canvas(scene) -> None:
+    """A frame given up half way (a segment that does not decode, a file cut short) leaves
+    the canvas partly written: the next good frame still measures as its whole frame."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    rng = np.random.default_rng(11)
+    goods = [encode(frames[k], "jpeg", 90) for k in (0, 3)]
+    wants = [measurer.measure(decode(g)) for g in goods]
+    for i in range(12):
+        bad = bytearray(goods[i % 2])
+        if i % 3 == 0:
+            bad = bad[: int(len(bad) * rng.uniform(0.3, 0.9))]  # cut short
+        else:  # bytes of the scan overwritten: markers, 0xFF, flipped bits
+            at = rng.integers(len(bad) // 10, len(bad), size=8)
+            bad_bytes = rng.integers(0, 256, size=8).astype(np.uint8)
+            bad_bytes[: i % 4] = 0xFF
+            for a, b in zip(at.tolist(), bad_bytes.tolist(), strict=True):
+                bad[a] = b
+        reader.measure(bytes(bad))  # ok or not: never an exception
+        got = reader.measure(goods[(i + 1) % 2])
+        assert got.ok, got.reason
+        _same(got, wants[(i + 1) % 2])
+
+
+def test_a_band_that_fails_half_decoded_leaves_nothing_in_the_canvas(scene, monkeypatch) -> None:
+    """libjpeg reads most damage as some pixels; a splice it refuses after writing part of
+    the band (here: the band written, then the error) must not leave that frame's pixels
+    for the next one to read as decoded."""
+    import vision.regions as regions
+
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    goods = [encode(frames[k], "jpeg", 90) for k in (0, 3)]
+    wants = [measurer.measure(decode(g)) for g in goods]
+    real = regions.decode_into
+    failing = {"on": False, "raised": 0}
+
+    def decode_into(layout, canvas, segments):  # type: ignore[no-untyped-def]
+        real(layout, canvas, segments)
+        if failing["on"]:
+            failing["raised"] += 1
+            raise ValueError("a segment that does not decode")
+
+    monkeypatch.setattr(regions, "decode_into", decode_into)
+    for i in range(4):
+        failing["on"] = True
+        reader.measure(goods[i % 2])  # given up half way: decoded whole instead
+        failing["on"] = False
+        got = reader.measure(goods[(i + 1) % 2])
+        assert got.ok, got.reason
+        _same(got, wants[(i + 1) % 2])
+        # and nothing of the frame given up where this one did not decode
+        canvas = reader._canvas
+        assert canvas is not None
+        left = canvas[~np.repeat(np.repeat(_done_blocks(reader), 8, 0), 8, 1)]
+        assert np.all(left == reader._canvas_level)
+    assert failing["raised"] == 4 and reader.stats.whole == 4 and reader.stats.parts == 4
+
+
 def _done_blocks(reader: RegionReader) -> np.ndarray:
     """The reader's decoded segments as a [block row, block col] mask."""
     canvas = reader._canvas
