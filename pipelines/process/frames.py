@@ -433,18 +433,28 @@ def _abandon(pool: ProcessPoolExecutor) -> None:
     call_queue = getattr(pool, "_call_queue", None)
     if call_queue is not None:
         call_queue.cancel_join_thread()
+    manager = getattr(pool, "_executor_manager_thread", None)  # shutdown forgets it
     pool.shutdown(wait=False, cancel_futures=True)
     for p in workers:
         if p.exitcode is None:
             p.kill()
     for p in workers:
         p.join(timeout=5.0)
-    # with every worker gone, close this process's end of the queue's pipe too: a feeder
-    # blocked on a full pipe then fails (EPIPE) and finishes, so the executor's exit
-    # handler, which joins it, returns and the interpreter exits
+    # with every worker gone, this process's end of the queue's pipe must be closed too: a
+    # feeder blocked on a full pipe then fails (EPIPE) and finishes, so the executor's exit
+    # handler, which joins it, returns and the interpreter exits. The executor's own
+    # thread closes it when it finds the pool broken (CPython gh-94777), at a moment of its
+    # choosing: closing it here at the same time raced it (both saw it open; the second
+    # close failed with EBADF, or could have closed a descriptor the number was reused
+    # for). So that thread is waited for first, and the pipe closed here only if it did not.
+    if manager is not None:
+        manager.join(timeout=5.0)
     reader = getattr(call_queue, "_reader", None)
-    if reader is not None:
-        reader.close()
+    if reader is not None and not reader.closed:
+        try:
+            reader.close()
+        except OSError:  # closed by the executor's thread after all (it was stuck)
+            pass
 
 
 # The longitudinal tip is the distance along the axis from the clamp's face to the tip's

@@ -11,6 +11,7 @@ import sys
 import tempfile
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -244,6 +245,24 @@ def test_workers_started_ahead_measure_the_frames_and_stop() -> None:
     unused.close()
     assert _children("multiprocessing.spawn") == []
     assert start_workers(1) is None  # one worker: the frames are measured here
+
+
+def test_workers_stopped_while_starting_leave_the_executor_finished() -> None:
+    # a run refused while its workers still import (a damaged log) stops them at once.
+    # The executor's own thread closes the call queue's pipe when it finds them killed;
+    # closing it here as well, at the same moment, failed with EBADF once in CI. The stop
+    # waits for that thread, so on return it is finished and the pipe closed, once.
+    from pipelines.process.frames import start_workers
+
+    for _ in range(3):
+        started = start_workers(2)
+        assert started is not None and started.pool is not None
+        pool: Any = started.pool  # the executor's internals, untyped here
+        call_queue, manager = pool._call_queue, pool._executor_manager_thread
+        started.close()
+        assert not manager.is_alive()
+        assert call_queue._reader.closed
+    assert _children("multiprocessing.spawn") == []
 
 
 def test_a_fresh_kernel_cache_measures_the_first_frames_here(
