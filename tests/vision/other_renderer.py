@@ -170,7 +170,9 @@ def draw_polygons(
     fig.patch.set_facecolor((background_dn / 255.0,) * 3)
     for poly, level in shapes:
         grey = (float(level) / 255.0,) * 3
-        ax.add_patch(
+        # add_artist, not add_patch: the view is set above, and add_patch's update of the
+        # data limits (the extrema of every segment) was most of the drawing's time
+        ax.add_artist(
             Polygon(poly, closed=True, facecolor=grey, edgecolor="none", linewidth=0.0, snap=False)
         )
     canvas.draw()
