@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from pipelines.commands._args import add_max_tip_uncertainty_argument, max_tip_uncertainty_m
 from pipelines.errors import BeambenchError
@@ -118,11 +119,30 @@ def _seen(m: dict[str, Any], width_m: float, blur_px: float) -> dict[str, Any]:
     return {**m, "beam_width_m": num(width_m), "blur_px": num(blur_px)}
 
 
+#: Said on a terminal before the first image when vision's kernels are not compiled yet.
+COMPILING_NOTE = (
+    "measure: compiling vision's kernels first (after an install or an update of "
+    "beambench: ~25 s, once; cached for every later run)"
+)
+
+
+def compiling_note(cold: bool, stream: TextIO | None = None) -> None:
+    """Say why the first image takes ~25 s when the kernel cache is cold, on a terminal
+    only (like :class:`pipelines.progress.Progress`; a pipe or a log gets nothing)."""
+    stream = sys.stderr if stream is None else stream
+    isatty = getattr(stream, "isatty", None)
+    if cold and isatty is not None and isatty():
+        print(COMPILING_NOTE, file=stream, flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     from pipelines.process.frames import measurer_for
     from vision import load_calibration
     from vision.calibration import check_points_in_image
+    from vision.jit import cached as kernels_cached
 
+    # asked first: loading the calibration compiles a few kernels of its own
+    cold = not kernels_cached()
     limit_m = max_tip_uncertainty_m(args)
     try:
         cal = load_calibration(args.calibration)
@@ -137,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
     measurer = measurer_for(cal, None, args.method, limit_m)
     from pipelines.process.frames import stated_sds
 
+    compiling_note(cold)
     for path, image in images:
         measured = measurer.measure(image)
         m = _with_sds(*_calibration_included(measured.to_dict(), *stated_sds(measured, cal)))

@@ -227,3 +227,41 @@ def test_a_calibration_with_its_covariance_adds_it_in_quadrature(files, tmp_path
         # the frame's own noise (as measured with the known calibration) and the
         # calibration's share, in quadrature
         assert out["detected"][sd] == pytest.approx(math.hypot(out["known"][sd], share), rel=0.05)
+
+
+class _Stream:
+    def __init__(self, tty: bool) -> None:
+        self.tty, self.text = tty, ""
+
+    def isatty(self) -> bool:
+        return self.tty
+
+    def write(self, s: str) -> int:
+        self.text += s
+        return len(s)
+
+    def flush(self) -> None:
+        pass
+
+
+def test_a_cold_kernel_cache_is_said_on_a_terminal_only() -> None:
+    """The first run after an install waits ~25 s for numba's compile: on a terminal it
+    says so before the first image; a pipe (scripts, logs, these tests' capture) and a
+    warm cache get nothing."""
+    from pipelines.commands.measure import COMPILING_NOTE, compiling_note
+
+    for tty, cold, said in ((True, True, True), (False, True, False), (True, False, False)):
+        stream = _Stream(tty)
+        compiling_note(cold, stream)  # type: ignore[arg-type]
+        assert stream.text == (COMPILING_NOTE + "\n" if said else ""), (tty, cold)
+
+
+def test_measure_says_so_when_the_cache_is_cold(files, capsys, monkeypatch) -> None:
+    import pipelines.commands.measure as measure_command
+    import vision.jit
+
+    asked: list[bool] = []
+    monkeypatch.setattr(vision.jit, "cached", lambda package=None: False)
+    monkeypatch.setattr(measure_command, "compiling_note", lambda cold: asked.append(cold))
+    assert main(["measure", str(files["frame.jpg"]), "--calibration", str(files["cal.json"])]) == 0
+    assert asked == [True]
