@@ -142,7 +142,7 @@ def _parse_layout(
     scan_at = 0
     n_comp = 0
     h = v = 1
-    ids = np.zeros(3, dtype=np.int64)
+    id0 = id1 = id2 = 0
     adobe = -1  # an Adobe APP14 marker's colour transform (-2: one too short to say)
     while True:
         while i < n and buf[i] == 0xFF and i + 1 < n and buf[i + 1] == 0xFF:
@@ -162,16 +162,12 @@ def _parse_layout(
                 # YCbCr: 8-bit, Y sampled 1 or 2 either way, Cb and Cr once per MCU
                 if length - 2 != 15 or buf[body] != 8:
                     return nothing
-                for c in range(3):
-                    ids[c] = buf[body + 6 + 3 * c]
-                    hv = int(buf[body + 7 + 3 * c])
-                    if c == 0:
-                        h = hv // 16
-                        v = hv % 16
-                        if not (1 <= h <= 2 and 1 <= v <= 2):
-                            return nothing
-                    elif hv != 0x11:
-                        return nothing
+                id0, id1, id2 = int(buf[body + 6]), int(buf[body + 9]), int(buf[body + 12])
+                h, v = int(buf[body + 7]) // 16, int(buf[body + 7]) % 16
+                if h < 1 or h > 2 or v < 1 or v > 2:
+                    return nothing
+                if buf[body + 10] != 0x11 or buf[body + 13] != 0x11:
+                    return nothing
             elif n_comp != 1:
                 return nothing  # CMYK, two components, ...
             height = int(buf[body + 1]) * 256 + int(buf[body + 2])
@@ -196,11 +192,10 @@ def _parse_layout(
                 adobe = int(buf[body + 11]) if length - 2 >= 12 else -2
         elif marker == 0xDA:
             if n_comp == 3:  # one scan of all three, in the frame's order
-                if length - 2 != 10 or buf[body] != 3:
+                if length - 2 != 10 or buf[body] != 3 or buf[body + 1] != id0:
                     return nothing
-                for c in range(3):
-                    if buf[body + 1 + 2 * c] != ids[c]:
-                        return nothing
+                if buf[body + 3] != id1 or buf[body + 5] != id2:
+                    return nothing
             scan_at = i + 2 + length
             break
         elif 0xD0 <= marker <= 0xD9:  # RSTn, SOI, EOI
@@ -212,9 +207,9 @@ def _parse_layout(
         # three components that libjpeg (libjpeg-turbo's and IJG's rules alike) takes
         # for YCbCr, decoded gray as Y alone: not RGB by the IDs "R", "G", "B", not IJG's
         # big-gamut YCC (IDs 1, 0x22, 0x23), no Adobe marker saying anything but YCbCr
-        if ids[0] == 0x52 and ids[1] == 0x47 and ids[2] == 0x42:
+        if id0 == 0x52 and id1 == 0x47 and id2 == 0x42:
             return nothing
-        if ids[0] == 1 and ids[1] == 0x22 and ids[2] == 0x23:
+        if id0 == 1 and id1 == 0x22 and id2 == 0x23:
             return nothing
         if adobe != -1 and adobe != 1:
             return nothing

@@ -152,6 +152,7 @@ class RegionReader:
         # down: one gray, two of a colour JPEG whose Y is sampled twice vertically)
         shape = layout.blocks_shape
         seg_cols = layout.segment_px[0] // _BLOCK_PX
+        seg_rows = layout.segment_px[1] // _BLOCK_PX
         ring_segs = self._ring_segments(layout)
         if ring_segs.size == 0:  # the circles miss the image: the measurement says why
             return None
@@ -178,7 +179,7 @@ class RegionReader:
         w0 = outward_width(shown, self.measurer.calibration.beam_width_m)
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
-            new = _missing(want, done, seg_cols)
+            new = _missing_segments(want, done, seg_cols, seg_rows)
             if new.size:
                 done[new] = True
                 try:
@@ -193,7 +194,7 @@ class RegionReader:
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, w0, shape)
-            if _missing(read, done, seg_cols).size == 0:
+            if _missing_segments(read, done, seg_cols, seg_rows).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
@@ -623,60 +624,48 @@ def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -
     return 0.5 * (float(lo) + float(hi))
 
 
+def _missing_segments(
+    blocks: NDArray[np.bool_], done: NDArray[np.bool_], seg_cols: int, seg_rows: int
+) -> NDArray[np.intp]:
+    """The segments holding a True block of ``blocks`` (a [block row, block col] mask)
+    and not ``done`` (a flag a segment, raster order), a segment ``seg_cols`` blocks
+    across and ``seg_rows`` down (an MCU's block rows: 1 gray, 2 of a colour JPEG with Y
+    sampled twice vertically, whose two rows are OR-ed first, ~10 us a frame)."""
+    if seg_rows > 1:
+        rows = blocks.reshape(-1, seg_rows, blocks.shape[1])
+        folded = rows[:, 0].copy()
+        for j in range(1, seg_rows):
+            folded |= rows[:, j]
+        blocks = folded
+    return _missing(blocks, done, seg_cols)
+
+
 @kernel
-def _missing(blocks: NDArray[np.bool_], done: NDArray[np.bool_], seg_cols: int) -> NDArray[np.intp]:
-    """The segments holding a True block of ``blocks`` (a [block row, block col] mask in
-    C order) and not ``done`` (one flag a segment, raster order): a segment is
-    ``seg_cols`` blocks across and ``down = blocks.size // (done.size * seg_cols)``
-    block rows down (1: a gray JPEG's, where segment ``s`` is blocks ``s * seg_cols``
-    to ``(s + 1) * seg_cols`` in raster order; 2: a colour JPEG's with Y sampled twice
-    vertically)."""
+def _missing(blocks: NDArray[np.bool_], done: NDArray[np.bool_], interval: int) -> NDArray[np.intp]:
+    """The segments holding a True block of ``blocks`` (C order: segment ``s`` is blocks
+    ``s * interval`` to ``(s + 1) * interval`` in raster order) and not ``done``
+    (``interval``: the blocks of a segment, its MCUs of a gray JPEG; a segment more
+    than one block row tall is first folded to one, :func:`_missing_segments`)."""
     out = np.empty(done.size, dtype=np.intp)
     n = 0
-    if done.size == 0:
-        return out
     flat = blocks.ravel().view(np.uint8)
-    k = seg_cols
-    down = blocks.size // (done.size * k)
-    # a segment's blocks are ``seg_cols`` bytes in a row of the mask: one 4-byte word
-    # at beambench's own interval of a gray JPEG (vision.codec.RST_INTERVAL_MCU), else
-    # byte by byte with no branch (at 4 blocks, 8 times slower); a segment of a colour
-    # JPEG's 16 x 16 MCUs at that interval is one 8-byte word in each of its two rows
-    if k == 8 and down == 2:
-        words8 = flat.view(np.uint64)
-        per_row = blocks.shape[1] // k
-        for seg in range(done.size):
-            at = (seg // per_row) * 2 * per_row + seg % per_row  # in 8-byte words
-            if (words8[at] | words8[at + per_row]) != 0 and not done[seg]:
-                out[n] = seg
-                n += 1
-    elif k == 4 and down == 1:
+    k = interval
+    # a segment's blocks are ``interval`` bytes in a row of the mask: one 4-byte word
+    # at beambench's own interval (vision.codec.RST_INTERVAL_MCU), else byte by byte
+    # with no branch (at 4 blocks, 8 times slower)
+    if k == 4:
         words = flat.view(np.uint32)
         for seg in range(done.size):
             if words[seg] != 0 and not done[seg]:
                 out[n] = seg
                 n += 1
-    elif down == 1:
+    else:
         ku = np.uint64(k)
         for seg in range(done.size):
             at = np.uint64(seg) * ku
             hit = False
             for c in range(ku):
                 hit |= flat[at + c] != 0  # no branch per block: an OR the compiler vectorises
-            if hit and not done[seg]:
-                out[n] = seg
-                n += 1
-    else:
-        ku = np.uint64(k)
-        width = np.uint64(blocks.shape[1])
-        per_row = blocks.shape[1] // k
-        for seg in range(done.size):
-            top = np.uint64((seg // per_row) * down) * width + np.uint64(seg % per_row) * ku
-            hit = False
-            for y in range(down):
-                at = top + np.uint64(y) * width
-                for c in range(ku):
-                    hit |= flat[at + c] != 0
             if hit and not done[seg]:
                 out[n] = seg
                 n += 1

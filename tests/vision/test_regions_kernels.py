@@ -16,6 +16,7 @@ from vision.regions import (
     RegionReader,
     _median_sampled,
     _missing,
+    _missing_segments,
     _tube_pixels,
     _tube_points,
 )
@@ -246,8 +247,8 @@ def test_missing_segments_are_the_numpy_forms() -> None:
 
 def test_missing_segments_of_colour_jpegs_are_the_numpy_forms() -> None:
     """A colour JPEG's segment is ``interval * H`` blocks across and ``V`` down (here
-    every H, V in {1, 2}: the 8-byte word path for 4:2:0 at beambench's interval of 4,
-    the 4-byte one for 4:4:4 at 4, the general ones otherwise): hit when one of its
+    every H, V in {1, 2}; two block rows folded to one, then the word path for 4:4:4 and
+    4:4:0 at beambench's interval of 4, the byte path otherwise): hit when one of its
     blocks is, missing when also not done."""
     rng = np.random.default_rng(12)
     for across, down, per_row, rows in (
@@ -271,7 +272,7 @@ def test_missing_segments_of_colour_jpegs_are_the_numpy_forms() -> None:
                 ]
             )
             want = np.flatnonzero(hits & ~done)
-            got = _missing(blocks, done, across)
+            got = _missing_segments(blocks, done, across, down)
             np.testing.assert_array_equal(got, want)
             assert got.dtype == np.intp
         # one block set at a time: each block belongs to exactly its own segment
@@ -281,6 +282,7 @@ def test_missing_segments_of_colour_jpegs_are_the_numpy_forms() -> None:
                 one[r, c] = True
                 own = r // down * per_row + c // across
                 np.testing.assert_array_equal(
-                    _missing(one, np.zeros(rows * per_row, dtype=bool), across), [own]
+                    _missing_segments(one, np.zeros(rows * per_row, dtype=bool), across, down),
+                    [own],
                 )
-    assert _missing(np.zeros((0, 8), dtype=bool), np.zeros(0, dtype=bool), 8).size == 0
+    assert _missing_segments(np.zeros((0, 8), bool), np.zeros(0, bool), 8, 2).size == 0
