@@ -1,8 +1,10 @@
 """Decode only what the measurement reads: a run's JPEG frames measured from their parts.
 
 :class:`RegionReader` measures encoded frames with a :class:`~vision.measure.Measurer`
-(default method) while decoding, of a JPEG with restart markers
-(:mod:`vision.jpeg_regions`), only the segments the measurement reads:
+(default method) while decoding, of a JPEG with restart markers (gray, or YCbCr colour
+as a colour camera's driver writes it: :mod:`vision.jpeg_regions`), only the segments
+the measurement reads (what it reads is found in 8 x 8 blocks, a segment being
+``interval`` MCUs of one block gray, of up to 2 x 2 blocks colour):
 
 1. the segments under the measurement's own two search circles about the pivot
    (:func:`vision.locate.search_circles`, a few % of a frame), where

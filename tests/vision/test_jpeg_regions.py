@@ -468,3 +468,33 @@ def test_colour_jpegs_that_cannot_be_split_have_no_layout() -> None:
     swapped[at + 1] ^= 0x01
     assert jpeg_layout(bytes(swapped)) is None
     assert jpeg_layout(data[: len(data) // 2]) is None
+
+
+def test_colour_headers_damaged_give_no_layout_a_decode_error_or_the_whole_decode() -> None:
+    """Bytes of a colour JPEG's headers (frame, scan, tables, APP markers) overwritten at
+    random: no layout, a decode error, or every segment decoded bit for bit as the damaged
+    JPEG's whole decode (never another picture than libjpeg's own of those bytes)."""
+    img = _colour_scene(120, 256, seed=5)
+    seen = {"none": 0, "error": 0, "same": 0}
+    for sampling in ("4:2:0", "4:2:2", "4:4:0"):
+        data, _ = _colour_jpeg(img, "opencv", sampling, 2, 85)
+        layout = jpeg_layout(data)
+        assert layout is not None
+        head = len(layout.header)
+        rng = np.random.default_rng(len(sampling) + head)
+        for _ in range(120):
+            bad = bytearray(data)
+            for _ in range(int(rng.integers(1, 3))):
+                bad[int(rng.integers(2, head))] = int(rng.integers(0, 256))
+            damaged = jpeg_layout(bytes(bad))
+            if damaged is None:
+                seen["none"] += 1
+                continue
+            try:
+                parts = decode_region(damaged, np.arange(len(damaged.starts)), fill=0)
+            except DecodeError:
+                seen["error"] += 1
+                continue
+            np.testing.assert_array_equal(parts, decode(bytes(bad)))
+            seen["same"] += 1
+    assert min(seen.values()) > 0, seen
