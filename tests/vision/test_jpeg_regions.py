@@ -424,10 +424,23 @@ def test_colour_jpegs_that_cannot_be_split_have_no_layout() -> None:
     img = _colour_scene(96, 128, seed=4)
     data, _ = _colour_jpeg(img, "opencv", "default", 2, 90)
     assert jpeg_layout(data) is not None
-    # RGB by the components' IDs ("R", "G", "B"), or IJG's big-gamut YCC (1, 0x22, 0x23)
+    # RGB by the components' IDs ("R", "G", "B"), or IJG's big-gamut YCC (1, 0x22, 0x23):
+    # with a JFIF marker, as here, libjpeg-turbo (OpenCV's) still takes them for YCbCr but
+    # IJG's libjpeg 9 goes by the IDs; refused where either would not decode Y alone
     assert jpeg_layout(_set_component_ids(data, b"RGB")) is None
     assert jpeg_layout(_set_component_ids(data, b"\x01\x22\x23")) is None
     assert jpeg_layout(_set_component_ids(data, b"\x04\x05\x06")) is not None  # YCbCr
+    # an Adobe marker (APP14) saying YCbCr (transform 1): split, bit for bit; saying RGB
+    # (0) or YCCK (2), or too short to say: not split (here too the JFIF marker wins for
+    # libjpeg-turbo, not for libjpeg 9)
+    for transform, split in ((1, True), (0, False), (2, False), (None, False)):
+        body = b"Adobe\x00\x64\x00\x00\x00\x00" + (b"" if transform is None else bytes([transform]))
+        adobe = data[:2] + b"\xff\xee" + (len(body) + 2).to_bytes(2, "big") + body + data[2:]
+        layout = jpeg_layout(adobe)
+        assert (layout is not None) == split, transform
+        if layout is not None:
+            everything = decode_region(layout, np.arange(len(layout.starts)), fill=0)
+            np.testing.assert_array_equal(everything, decode(adobe))
     rgb = Image.fromarray(img[:, :, ::-1])
     for kw in (
         {"keep_rgb": True},  # RGB: an Adobe marker saying no colour transform
