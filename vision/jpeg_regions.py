@@ -4,16 +4,24 @@ A baseline JPEG written with a restart interval of ``k`` MCUs (``DRI``; beambenc
 capture writes one, :data:`RST_INTERVAL_MCU`) is a chain of self-contained segments: each
 starts byte-aligned after an ``RSTn`` marker with the DC predictors reset, so any set of
 them, renumbered ``RST0..7`` in turn, is itself a valid entropy-coded scan. Here the
-selected segments of a single-component (gray) JPEG are spliced into a smaller baseline
-JPEG, ``k`` MCUs wide and one MCU row per segment (the frame header's size changed, the
-tables and ``DRI`` kept), decoded by OpenCV like any other JPEG and put back in place.
-A gray JPEG's blocks are decoded independently (no chroma upsampling, no smoothing in a
+selected segments are spliced into a smaller baseline JPEG, ``k`` MCUs wide and one MCU
+row per segment (the frame header's size changed, the tables and ``DRI`` kept), decoded
+by OpenCV like any other JPEG and put back in place.
+
+The JPEG may be gray (one component: an MCU is one 8 x 8 block) or YCbCr colour (three
+components in one interleaved scan, Y sampled ``H x V`` with H, V in {1, 2} and Cb, Cr
+1 x 1: 4:4:4, 4:2:2, 4:2:0, 4:4:0; an MCU is ``8H x 8V`` pixels, ``H x V`` Y blocks and
+one of each chroma), as a colour camera's JPEGs are (``daq/drivers/opencv_camera.py``).
+Decoded gray (``IMREAD_GRAYSCALE`` and its reduced forms, as :func:`vision.codec.decode`),
+a YCbCr JPEG is its Y component alone: libjpeg neither upsamples nor converts the chroma,
+and the Y blocks, like a gray JPEG's, are decoded independently (no smoothing in a
 baseline scan), so the pixels come out bit for bit as a full decode gives them.
 
-A JPEG this cannot split (progressive, colour, no restart interval, segments that do not
-tile the MCU rows, damaged markers) has no :class:`JpegLayout` (:func:`jpeg_layout`
-returns None); callers then decode it whole (:func:`vision.codec.decode`), which reports
-damaged bytes as its errors do.
+A JPEG this cannot split (progressive, CMYK or other component counts, RGB or
+unusual sampling, several scans, no restart interval, segments that do not tile the MCU
+rows, damaged markers) has no :class:`JpegLayout` (:func:`jpeg_layout` returns None);
+callers then decode it whole (:func:`vision.codec.decode`), which reports damaged bytes
+as its errors do.
 """
 
 from __future__ import annotations
@@ -30,18 +38,21 @@ from vision.codec import MAX_SIDE_PX, RST_INTERVAL_MCU
 from vision.errors import DecodeError, ParameterError
 from vision.jit import kernel
 
-_MCU_PX = 8  # a single-component scan's MCU is one 8 x 8 block
+_BLOCK_PX = 8  # a DCT block's side; a gray scan's MCU is one block
 # the spliced JPEG's height is a 16-bit field: at most this many segments in one splice
-_MAX_SEGMENTS = 65535 // _MCU_PX
+# (of one block's height; of an MCU twice as tall, half as many: _max_segments)
+_MAX_SEGMENTS = 65535 // _BLOCK_PX
 #: A splice's rows are about this wide (px): several narrow segments side by side.
 _ROW_PX = 1024
 
 
 @dataclass(frozen=True, eq=False)
 class JpegLayout:
-    """Where a gray baseline JPEG's restart segments lie: ``starts[i]`` / ``ends[i]`` are
-    the byte offsets of segment ``i``'s entropy-coded data (markers excluded), segments in
-    raster order of ``interval`` MCUs each, ``per_row`` to an MCU row."""
+    """Where a baseline JPEG's restart segments lie: ``starts[i]`` / ``ends[i]`` are the
+    byte offsets of segment ``i``'s entropy-coded data (markers excluded), segments in
+    raster order of ``interval`` MCUs each, ``per_row`` to an MCU row; an MCU is
+    ``mcu_w_px x mcu_h_px`` (8 x 8 gray; 8H x 8V of a YCbCr JPEG whose Y is sampled
+    H x V)."""
 
     data: bytes
     width_px: int
@@ -53,6 +64,8 @@ class JpegLayout:
     sof_size_at: int  # offset in ``header`` of the frame header's height (then width)
     starts: NDArray[np.intp]
     ends: NDArray[np.intp]
+    mcu_w_px: int = _BLOCK_PX
+    mcu_h_px: int = _BLOCK_PX
 
     @cached_property
     def starts_list(self) -> list[int]:
@@ -66,44 +79,58 @@ class JpegLayout:
 
     @property
     def segment_px(self) -> tuple[int, int]:
-        """(width, height) of one segment, px."""
-        return self.interval * _MCU_PX, _MCU_PX
+        """(width, height) of one segment, px: ``interval`` MCUs by one."""
+        return self.interval * self.mcu_w_px, self.mcu_h_px
+
+    @property
+    def blocks_shape(self) -> tuple[int, int]:
+        """(rows, columns) of the 8 x 8 blocks of the MCU grid (the image's size rounded
+        up to whole MCUs): the shape of the block masks :func:`segment_hits` takes (for
+        a gray JPEG ``ceil(height / 8) x ceil(width / 8)``)."""
+        return (
+            self.mcu_rows * self.mcu_h_px // _BLOCK_PX,
+            self.per_row * self.interval * self.mcu_w_px // _BLOCK_PX,
+        )
 
 
 def jpeg_layout(data: bytes) -> JpegLayout | None:
     """The segment layout of ``data``, or None when it cannot be decoded in parts (not a
-    JPEG, not baseline, not one component, no restart interval, an interval that does
-    not divide the MCU row, restart markers missing, out of order or damaged)."""
+    JPEG, not baseline, neither gray nor YCbCr with the sampling the module's notes
+    name in one interleaved scan, no restart interval, an interval that does not divide
+    the MCU row, restart markers missing, out of order or damaged)."""
     got = _parse_layout(np.frombuffer(data, dtype=np.uint8), MAX_SIDE_PX)
     if got[0] == 0:
         return None
-    width, height, interval, sof_at, scan_at, starts, ends = got
-    mcu_cols = (width + _MCU_PX - 1) // _MCU_PX
+    width, height, interval, sof_at, scan_at, starts, ends, h, v = got
+    mcu_w, mcu_h = _BLOCK_PX * h, _BLOCK_PX * v
+    mcu_cols = (width + mcu_w - 1) // mcu_w
     return JpegLayout(
         data=data,
         width_px=width,
         height_px=height,
         interval=interval,
         per_row=mcu_cols // interval,
-        mcu_rows=(height + _MCU_PX - 1) // _MCU_PX,
+        mcu_rows=(height + mcu_h - 1) // mcu_h,
         header=data[:scan_at],
         sof_size_at=sof_at,
         starts=starts,
         ends=ends,
+        mcu_w_px=mcu_w,
+        mcu_h_px=mcu_h,
     )
 
 
 @kernel
 def _parse_layout(
     buf: NDArray[np.uint8], max_side: int
-) -> tuple[int, int, int, int, int, NDArray[np.intp], NDArray[np.intp]]:
+) -> tuple[int, int, int, int, int, NDArray[np.intp], NDArray[np.intp], int, int]:
     """:func:`jpeg_layout`'s parse: ``(width, height, interval, offset of the frame
-    header's size, offset of the scan, starts, ends)``, width 0 when there is none.
-    The markers before the scan one by one; then, in the entropy-coded data, every
-    0xFF is followed by 0x00 (stuffing), a restart marker or the marker that ends the
-    scan, which must be EOI (one scan: baseline gray)."""
+    header's size, offset of the scan, starts, ends, H, V)`` (an MCU is ``H x V``
+    blocks), width 0 when there is none. The markers before the scan one by one; then,
+    in the entropy-coded data, every 0xFF is followed by 0x00 (stuffing), a restart
+    marker or the marker that ends the scan, which must be EOI (one scan)."""
     none = np.zeros(0, np.intp)
-    nothing = (0, 0, 0, 0, 0, none, none)
+    nothing = (0, 0, 0, 0, 0, none, none, 0, 0)
     n = buf.size
     if n < 2 or buf[0] != 0xFF or buf[1] != 0xD8:
         return nothing
@@ -113,6 +140,10 @@ def _parse_layout(
     have_size = False
     sof_at = -1
     scan_at = 0
+    n_comp = 0
+    h = v = 1
+    id0 = id1 = id2 = 0
+    adobe = -1  # an Adobe APP14 marker's colour transform (-2: one too short to say)
     while True:
         while i < n and buf[i] == 0xFF and i + 1 < n and buf[i + 1] == 0xFF:
             i += 1  # fill bytes
@@ -124,8 +155,21 @@ def _parse_layout(
             return nothing
         body = i + 4
         if marker == 0xC0 or marker == 0xC1:  # baseline / extended sequential, Huffman
-            if length - 2 < 6 or buf[body + 5] != 1:
-                return nothing  # not a single component
+            if length - 2 < 6:
+                return nothing
+            n_comp = int(buf[body + 5])
+            if n_comp == 3:
+                # YCbCr: 8-bit, Y sampled 1 or 2 either way, Cb and Cr once per MCU
+                if length - 2 != 15 or buf[body] != 8:
+                    return nothing
+                id0, id1, id2 = int(buf[body + 6]), int(buf[body + 9]), int(buf[body + 12])
+                h, v = int(buf[body + 7]) // 16, int(buf[body + 7]) % 16
+                if h < 1 or h > 2 or v < 1 or v > 2:
+                    return nothing
+                if buf[body + 10] != 0x11 or buf[body + 13] != 0x11:
+                    return nothing
+            elif n_comp != 1:
+                return nothing  # CMYK, two components, ...
             height = int(buf[body + 1]) * 256 + int(buf[body + 2])
             width = int(buf[body + 3]) * 256 + int(buf[body + 4])
             have_size = True
@@ -136,7 +180,22 @@ def _parse_layout(
             if length - 2 != 2:
                 return nothing
             interval = int(buf[body]) * 256 + int(buf[body + 1])
+        elif marker == 0xEE:  # APP14: Adobe's says RGB (0), YCbCr (1) or YCCK (2)
+            if (
+                length - 2 >= 5
+                and buf[body] == 0x41  # "Adobe"
+                and buf[body + 1] == 0x64
+                and buf[body + 2] == 0x6F
+                and buf[body + 3] == 0x62
+                and buf[body + 4] == 0x65
+            ):
+                adobe = int(buf[body + 11]) if length - 2 >= 12 else -2
         elif marker == 0xDA:
+            if n_comp == 3:  # one scan of all three, in the frame's order
+                if length - 2 != 10 or buf[body] != 3 or buf[body + 1] != id0:
+                    return nothing
+                if buf[body + 3] != id1 or buf[body + 5] != id2:
+                    return nothing
             scan_at = i + 2 + length
             break
         elif 0xD0 <= marker <= 0xD9:  # RSTn, SOI, EOI
@@ -144,10 +203,24 @@ def _parse_layout(
         i += 2 + length
     if not have_size or interval == 0:
         return nothing
+    if n_comp == 3:
+        # three components that libjpeg (libjpeg-turbo's and IJG's rules alike) takes
+        # for YCbCr, decoded gray as Y alone: not RGB by the IDs "R", "G", "B", not IJG's
+        # big-gamut YCC (IDs 1, 0x22, 0x23), no Adobe marker saying anything but YCbCr
+        if id0 == 0x52 and id1 == 0x47 and id2 == 0x42:
+            return nothing
+        if id0 == 1 and id1 == 0x22 and id2 == 0x23:
+            return nothing
+        if adobe != -1 and adobe != 1:
+            return nothing
+    else:
+        h = v = 1  # one component: an MCU is one block, whatever its sampling factors
     if not 0 < width <= max_side or not 0 < height <= max_side:
         return nothing
-    mcu_cols = (width + 7) // 8
-    mcu_rows = (height + 7) // 8
+    mcu_w = 8 * h
+    mcu_h = 8 * v
+    mcu_cols = (width + mcu_w - 1) // mcu_w
+    mcu_rows = (height + mcu_h - 1) // mcu_h
     if mcu_cols % interval:
         return nothing
     n_seg = mcu_cols // interval * mcu_rows
@@ -201,7 +274,7 @@ def _parse_layout(
     if stop < 0 or n_rst != n_seg - 1:
         return nothing
     ends[n_seg - 1] = stop
-    return width, height, interval, sof_at, scan_at, starts, ends
+    return width, height, interval, sof_at, scan_at, starts, ends, h, v
 
 
 def segments_covering(layout: JpegLayout, mask_px: NDArray[np.bool_]) -> NDArray[np.intp]:
@@ -211,26 +284,35 @@ def segments_covering(layout: JpegLayout, mask_px: NDArray[np.bool_]) -> NDArray
         raise ParameterError(
             "mask_px", f"must be {layout.height_px} x {layout.width_px}, got {mask_px.shape}"
         )
-    pad = np.zeros((layout.mcu_rows * _MCU_PX, layout.per_row * layout.interval * _MCU_PX), bool)
+    rows, cols = layout.blocks_shape
+    pad = np.zeros((rows * _BLOCK_PX, cols * _BLOCK_PX), bool)
     pad[: layout.height_px, : layout.width_px] = mask_px
-    blocks = np.asarray(pad.reshape(layout.mcu_rows, _MCU_PX, -1, _MCU_PX).any(axis=(1, 3)))
+    blocks = np.asarray(pad.reshape(rows, _BLOCK_PX, cols, _BLOCK_PX).any(axis=(1, 3)))
     return segments_of_blocks(layout, blocks)
 
 
 def segments_of_blocks(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.intp]:
     """The segments (raster indices) holding any True 8 x 8 block of a [block row, block
-    col] mask (``ceil(height / 8)`` x ``ceil(width / 8)``)."""
+    col] mask (:attr:`JpegLayout.blocks_shape`)."""
     return np.flatnonzero(segment_hits(layout, blocks))
 
 
 def segment_hits(layout: JpegLayout, blocks: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """Per segment (raster order), whether it holds any True block of a [block row,
-    block col] mask (``ceil(height / 8)`` x ``ceil(width / 8)``)."""
-    shape = (layout.mcu_rows, layout.per_row * layout.interval)
+    block col] mask (:attr:`JpegLayout.blocks_shape`: a segment is ``mcu_h_px / 8``
+    block rows by ``interval * mcu_w_px / 8`` block columns)."""
+    shape = layout.blocks_shape
     if blocks.shape != shape:
         raise ParameterError("blocks", f"must be {shape[0]} x {shape[1]}, got {blocks.shape}")
-    per_seg = np.ascontiguousarray(blocks, dtype=bool).reshape(shape[0] * layout.per_row, -1)
-    k = layout.interval
+    flags = np.ascontiguousarray(blocks, dtype=bool)
+    v = layout.mcu_h_px // _BLOCK_PX
+    if v > 1:  # an MCU row's block rows OR-ed into one
+        stacked = flags.reshape(layout.mcu_rows, v, shape[1])
+        flags = stacked[:, 0].copy()
+        for j in range(1, v):
+            flags |= stacked[:, j]
+    per_seg = flags.reshape(layout.mcu_rows * layout.per_row, -1)
+    k = per_seg.shape[1]  # blocks to a segment's row
     if k % 8 == 0:  # a segment's flags as 64-bit words, OR-ed column by column (numpy's
         # reduction along a short axis costs ten times more)
         words = per_seg.view(np.uint64)
@@ -252,15 +334,19 @@ def splice(layout: JpegLayout, segments: NDArray[np.intp]) -> bytes:
     return _splice(layout, segments).tobytes()
 
 
+def _max_segments(layout: JpegLayout) -> int:
+    """The most segments one above another in a splice (its height is a 16-bit field)."""
+    return min(_MAX_SEGMENTS, 65535 // layout.mcu_h_px)
+
+
 def _splice(layout: JpegLayout, segments: NDArray[np.intp], across: int = 1) -> NDArray[np.uint8]:
     """:func:`splice`, ``across`` segments to a row (``len(segments)`` a multiple)."""
     seg_w, seg_h = layout.segment_px
     seg = np.asarray(segments, dtype=np.intp)
     n = len(seg)
-    if not 0 < n <= _MAX_SEGMENTS * across or n % across:
-        raise ParameterError(
-            "segments", f"must number 1..{_MAX_SEGMENTS * across}, {across} to a row, got {n}"
-        )
+    most = _max_segments(layout) * across
+    if not 0 < n <= most or n % across:
+        raise ParameterError("segments", f"must number 1..{most}, {across} to a row, got {n}")
     out = _spliced(
         np.frombuffer(layout.data, dtype=np.uint8),
         layout.starts,
@@ -330,7 +416,7 @@ def _decoded(
     seg_w, seg_h = layout.segment_px
     segments = np.asarray(segments, dtype=np.intp)
     across = max(1, _ROW_PX // seg_w)
-    per_splice = _MAX_SEGMENTS * across
+    per_splice = _max_segments(layout) * across
     for k in range(0, len(segments), per_splice):
         part = segments[k : k + per_splice]
         a = min(across, len(part))
@@ -345,9 +431,9 @@ def _decoded(
 
 
 def decode_segments(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.uint8]:
-    """The given segments (ascending raster indices) decoded, one 8-pixel row each:
-    ``(8 * len(segments), 8 * interval)``. Raises :class:`~vision.errors.DecodeError`
-    when they do not decode."""
+    """The given segments (ascending raster indices) decoded, one MCU row each:
+    ``(len(segments) * seg_h, seg_w)`` (:attr:`JpegLayout.segment_px`). Raises
+    :class:`~vision.errors.DecodeError` when they do not decode."""
     seg_w, seg_h = layout.segment_px
     out = np.empty((len(segments) * seg_h, seg_w), dtype=np.uint8)
     done = 0

@@ -1,8 +1,10 @@
 """Decode only what the measurement reads: a run's JPEG frames measured from their parts.
 
 :class:`RegionReader` measures encoded frames with a :class:`~vision.measure.Measurer`
-(default method) while decoding, of a JPEG with restart markers
-(:mod:`vision.jpeg_regions`), only the segments the measurement reads:
+(default method) while decoding, of a JPEG with restart markers (gray, or YCbCr colour
+as a colour camera's driver writes it: :mod:`vision.jpeg_regions`), only the segments
+the measurement reads (what it reads is found in 8 x 8 blocks, a segment being
+``interval`` MCUs of one block gray, of up to 2 x 2 blocks colour):
 
 1. the segments under the measurement's own two search circles about the pivot
    (:func:`vision.locate.search_circles`, a few % of a frame), where
@@ -111,7 +113,7 @@ class RegionReader:
         self._circles: SearchCircles = search_circles(
             cal.to_px, cal.beam_length_m, cal.beam_width_m, measurer.px_m
         )
-        self._ring_segs: dict[tuple[int, int, int], NDArray[np.intp]] = {}
+        self._ring_segs: dict[tuple[int, ...], NDArray[np.intp]] = {}
         #: The last frame's canvas, the level it was blanked to and its segments decoded.
         self._canvas: NDArray[np.uint8] | None = None
         self._canvas_level = 0
@@ -147,7 +149,12 @@ class RegionReader:
 
     # -- the parts --------------------------------------------------------------------
     def _measure_parts(self, layout: JpegLayout) -> FrameMeasurement | None:
-        shape = (layout.mcu_rows, layout.per_row * layout.interval)
+        # the masks below are of 8 x 8 blocks (what the measurement reads is found to
+        # the block); a segment is ``seg_cols`` of them across (and an MCU's block rows
+        # down: one gray, two of a colour JPEG whose Y is sampled twice vertically)
+        shape = layout.blocks_shape
+        seg_cols = layout.segment_px[0] // _BLOCK_PX
+        seg_rows = layout.segment_px[1] // _BLOCK_PX
         ring_segs = self._ring_segments(layout)
         if ring_segs.size == 0:  # the circles miss the image: the measurement says why
             return None
@@ -174,7 +181,7 @@ class RegionReader:
         w0 = outward_width(shown, self.measurer.calibration.beam_width_m)
         want = self._predicted(p1, p2, w0, shape)
         for attempt in range(2):
-            new = _missing(want, done, layout.interval)
+            new = _missing_segments(want, done, seg_cols, seg_rows)
             if new.size:
                 done[new] = True
                 try:
@@ -189,7 +196,7 @@ class RegionReader:
             if not m.ok:
                 return None
             read = self._read(m, p1, p2, w0, shape)
-            if _missing(read, done, layout.interval).size == 0:
+            if _missing_segments(read, done, seg_cols, seg_rows).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m
             # Read beyond what was decoded: decode that, and the band's whole reach
@@ -259,10 +266,10 @@ class RegionReader:
     # -- regions ----------------------------------------------------------------------
     def _ring_segments(self, layout: JpegLayout) -> NDArray[np.intp]:
         """The segments under the search circles (the bilinear samples' four pixels)."""
-        key = (layout.width_px, layout.height_px, layout.interval)
+        key = (layout.width_px, layout.height_px, layout.interval, *layout.segment_px)
         got = self._ring_segs.get(key)
         if got is None:
-            shape = (layout.mcu_rows, layout.per_row * layout.interval)
+            shape = layout.blocks_shape
             blocks = np.zeros(shape, dtype=bool)
             for px in self._circles.px:
                 ok = np.all(np.isfinite(px), axis=1)
@@ -619,10 +626,28 @@ def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -
     return 0.5 * (float(lo) + float(hi))
 
 
+def _missing_segments(
+    blocks: NDArray[np.bool_], done: NDArray[np.bool_], seg_cols: int, seg_rows: int
+) -> NDArray[np.intp]:
+    """The segments holding a True block of ``blocks`` (a [block row, block col] mask)
+    and not ``done`` (a flag a segment, raster order), a segment ``seg_cols`` blocks
+    across and ``seg_rows`` down (an MCU's block rows: 1 gray, 2 of a colour JPEG with Y
+    sampled twice vertically, whose two rows are OR-ed first, ~10 us a frame)."""
+    if seg_rows > 1:
+        rows = blocks.reshape(-1, seg_rows, blocks.shape[1])
+        folded = rows[:, 0].copy()
+        for j in range(1, seg_rows):
+            folded |= rows[:, j]
+        blocks = folded
+    return _missing(blocks, done, seg_cols)
+
+
 @kernel
 def _missing(blocks: NDArray[np.bool_], done: NDArray[np.bool_], interval: int) -> NDArray[np.intp]:
     """The segments holding a True block of ``blocks`` (C order: segment ``s`` is blocks
-    ``s * interval`` to ``(s + 1) * interval`` in raster order) and not ``done``."""
+    ``s * interval`` to ``(s + 1) * interval`` in raster order) and not ``done``
+    (``interval``: the blocks of a segment, its MCUs of a gray JPEG; a segment more
+    than one block row tall is first folded to one, :func:`_missing_segments`)."""
     out = np.empty(done.size, dtype=np.intp)
     n = 0
     flat = blocks.ravel().view(np.uint8)

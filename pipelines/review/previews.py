@@ -17,6 +17,9 @@ of a frame is still background. :class:`RegionPreviews` therefore makes
   region touches are encoded again, spliced between the last whole frame's own: the
   same bytes as encoding the whole reduced frame (tested), in a fraction of the time.
 
+The JPEG may be gray or YCbCr colour (a colour camera's; previews, like the measurement,
+are of the gray image: its Y component), its restart segments ``interval`` MCUs of
+8 x 8 or 16 x 16 (4:2:0), 16 x 8 or 8 x 16 px each (:class:`vision.jpeg_regions.JpegLayout`).
 The region is whole 8 x 8 blocks of the reduced image, so its pixels come out exactly as
 this frame's whole preview shows them and the rest exactly as the last whole frame's
 (tested). What lies outside the region (the registration object, anything else in view)
@@ -70,7 +73,7 @@ class _Whole:
     canvas: NDArray[np.uint8]
     blocks: NDArray[np.bool_]
     size: tuple[int, int]  # full size (width, height)
-    interval: int
+    segment_px: tuple[int, int]  # the frames' segments (width, height), full size
     encoded: JpegLayout | None  # its preview's segments (None: encoded whole each time)
 
 
@@ -95,11 +98,11 @@ class RegionPreviews:
         """The frame as the recording shows it: (JPEG bytes, "jpeg", pixel scale)."""
         r = self.reduction
         layout = jpeg_layout(bytes(data)) if encoding in ("jpeg", "jpg") else None
-        if layout is not None and layout.interval % r:
+        if layout is not None and layout.segment_px[0] % (_BLOCK * r):
             layout = None  # its segments would cut the reduced image's blocks
         blocks = None
         if layout is not None and m is not None and m.ok and not self.whole:
-            blocks = region_blocks(m, (layout.mcu_rows, layout.per_row * layout.interval))
+            blocks = region_blocks(m, layout.blocks_shape)
         last = self._last
         size = (layout.width_px, layout.height_px) if layout is not None else None
         if (
@@ -107,7 +110,7 @@ class RegionPreviews:
             or last is None
             or self._since + 1 >= WHOLE_EVERY_FRAMES
             or last.size != size
-            or last.interval != layout.interval  # type: ignore[union-attr]
+            or last.segment_px != layout.segment_px  # type: ignore[union-attr]
         ):
             return self._whole(data, layout, blocks)
         assert layout is not None
@@ -142,19 +145,20 @@ class RegionPreviews:
             return shown, "jpeg", 1.0 / r
         image = decode_reduced(bytes(data), r)
         self.whole_frames += 1
-        seg_w, seg_h = layout.interval * _BLOCK // r, _BLOCK // r
+        seg_w, seg_h = layout.segment_px[0] // r, layout.segment_px[1] // r
         canvas = np.zeros((layout.mcu_rows * seg_h, layout.per_row * seg_w), np.uint8)
         canvas[: image.shape[0], : image.shape[1]] = image
         # the bytes preview() gives: the same reduced decode, encoded the same way
         out = encode(image, "jpeg", QUALITY)
         size = (layout.width_px, layout.height_px)
-        self._last = _Whole(canvas, blocks, size, layout.interval, jpeg_layout(out))
+        self._last = _Whole(canvas, blocks, size, layout.segment_px, jpeg_layout(out))
         self._since = 0
         return out, "jpeg", 1.0 / r
 
 
 def region_blocks(m: FrameMeasurement, shape: tuple[int, int]) -> NDArray[np.bool_] | None:
-    """The full-size 8 x 8 blocks ([block row, block col], ``shape``) within
+    """The full-size 8 x 8 blocks ([block row, block col], ``shape``: a layout's
+    :attr:`~vision.jpeg_regions.JpegLayout.blocks_shape`) within
     :data:`MARGIN_PX` of the measured hub's and beam's edges (their centre lines, each
     widened by its measured width), or None when the measurement does not place them."""
     hub = np.asarray(m.hub_line_px, float)
@@ -209,10 +213,12 @@ def _reduced_blocks(blocks: NDArray[np.bool_], r: int) -> NDArray[np.bool_]:
 
 
 def _segment_blocks(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[np.bool_]:
-    """The full-size blocks of the given segments."""
+    """The full-size 8 x 8 blocks of the given segments (``layout.blocks_shape``)."""
     hit = np.zeros(layout.mcu_rows * layout.per_row, dtype=bool)
     hit[segments] = True
-    return np.repeat(hit.reshape(layout.mcu_rows, layout.per_row), layout.interval, axis=1)
+    seg_w, seg_h = layout.segment_px
+    grid = hit.reshape(layout.mcu_rows, layout.per_row)
+    return np.repeat(np.repeat(grid, seg_h // _BLOCK, axis=0), seg_w // _BLOCK, axis=1)
 
 
 def _respliced(
@@ -225,7 +231,9 @@ def _respliced(
     as they were. A baseline scan's segments are independent (the DC predictions reset
     at each restart), so this is the bytes of encoding the whole canvas; None when the
     tables came out different (then the caller encodes the whole)."""
-    seg_w = whole.interval * _BLOCK
+    seg_w, seg_h = whole.segment_px
+    if seg_h != _BLOCK:  # our own gray encode's: one 8 x 8 block an MCU
+        return None
     rows, cols = whole.mcu_rows, whole.per_row * whole.interval
     if changed.shape[0] < rows or changed.shape[1] < cols:
         return None
@@ -266,7 +274,7 @@ def _paste(
     r: int,
 ) -> None:
     """Put the reduced decode of spliced segments in their place in a reduced canvas."""
-    seg_w, seg_h = layout.interval * _BLOCK // r, _BLOCK // r
+    seg_w, seg_h = layout.segment_px[0] // r, layout.segment_px[1] // r
     grid = canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
     grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
         len(segments), seg_h, seg_w

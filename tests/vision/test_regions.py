@@ -6,12 +6,15 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import cv2
 import numpy as np
 import pytest
 
+from daq.drivers.opencv_camera import JPEG_RST_INTERVAL_MCU as RST_CAMERA
 from vision.codec import decode, encode
 from vision.config import CameraConfig, CameraPoseConfig
 from vision.frame_measurement import FrameMeasurement
+from vision.jpeg_regions import jpeg_layout
 from vision.measure import Measurer
 from vision.regions import RegionReader
 from vision.synthetic.render import render_frame
@@ -299,3 +302,163 @@ def test_flipped_bits_in_parts_never_give_a_wrong_ok(scene) -> None:
             measured += 1
             assert abs(got.tip_lateral_m - clean.tip_lateral_m) <= 0.5e-3
     assert measured > 20
+
+
+# -- colour frames: what the camera driver writes for a colour camera ---------------------
+
+_SAMPLING = {
+    "4:2:0": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420,
+    "4:2:2": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_422,
+    "4:4:0": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_440,
+    "4:4:4": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444,
+}
+
+
+def _colour(image: np.ndarray) -> np.ndarray:
+    """A BGR frame of a gray one with a colour cast that varies across the frame (blue
+    lifted to the right, red with a ripple, green darkened downward), so that its Y is
+    not the gray image (about 0.97 of it and 4 to 14 levels more)."""
+    h, w = image.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    g = image.astype(np.float64)
+    b = 0.5 * g + 60.0 + 60.0 * xx / w
+    gr = 0.95 * g - 12.0 * yy / h
+    r = 1.2 * g - 6.0 + 8.0 * np.sin(xx / 97.0)
+    return np.clip(np.dstack([b, gr, r]).round(), 0, 255).astype(np.uint8)
+
+
+def _driver_jpeg(bgr: np.ndarray, quality: int = 90, sampling: str | None = None) -> bytes:
+    """As ``daq/drivers/opencv_camera.py`` encodes a colour frame (OpenCV's default
+    4:2:0 unless ``sampling``, a restart marker every ``JPEG_RST_INTERVAL_MCU``)."""
+    params = [cv2.IMWRITE_JPEG_QUALITY, quality, cv2.IMWRITE_JPEG_RST_INTERVAL, RST_CAMERA]
+    if sampling is not None:
+        params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, _SAMPLING[sampling]]
+    ok, buf = cv2.imencode(".jpg", bgr, params)
+    assert ok
+    return bytes(buf)
+
+
+def _done_pixels(reader: RegionReader, layout) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The reader's decoded segments as a [row, col] mask of its canvas."""
+    seg_w, seg_h = layout.segment_px
+    done = reader._canvas_done.reshape(layout.mcu_rows, layout.per_row)
+    return np.repeat(np.repeat(done, seg_h, 0), seg_w, 1)
+
+
+@pytest.mark.parametrize(
+    ("sampling", "segment_px"),
+    [(None, (64, 16)), ("4:2:2", (64, 8)), ("4:4:0", (32, 16)), ("4:4:4", (32, 8))],
+)
+def test_colour_frames_measure_from_their_parts_as_the_whole_frame(
+    scene, sampling: str | None, segment_px: tuple[int, int]
+) -> None:
+    """Colour frames of a beam, a run in order (the track kept), as the camera driver
+    writes them: each measured from its parts, field for field as the whole gray decode
+    measures it; what was not decoded is the background level alone."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    for image in frames:
+        data = _driver_jpeg(_colour(image), sampling=sampling)
+        layout = jpeg_layout(data)
+        assert layout is not None and layout.segment_px == segment_px
+        whole = decode(data)
+        assert (whole.astype(np.int16) - image).mean() > 4  # Y is not the gray image
+        before = reader.stats.parts
+        got = reader.measure(data)
+        assert got.ok, got.reason
+        _same(got, measurer.measure(whole))
+        assert reader.stats.parts == before + 1  # in parts
+        canvas = reader._canvas
+        assert canvas is not None and canvas.shape == (
+            layout.mcu_rows * segment_px[1],
+            layout.per_row * segment_px[0],
+        )
+        assert np.all(canvas[~_done_pixels(reader, layout)] == reader._canvas_level)
+        shown = canvas[: whole.shape[0], : whole.shape[1]]
+        done = _done_pixels(reader, layout)[: whole.shape[0], : whole.shape[1]]
+        np.testing.assert_array_equal(shown[done], whole[done])
+    assert reader.stats.whole == 0
+    assert max(reader.stats.decoded_fraction) < 0.6
+    assert reader.hub_back_m == pytest.approx(0.6 - 0.008, abs=0.02)  # the track
+
+
+def test_colour_and_gray_frames_in_one_run(scene) -> None:
+    """A run switching between a gray frame and colour ones of two samplings (another
+    segment size, the same image size): the canvas is made anew for each, every frame
+    measured from its parts as from the whole frame."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    for k, make in enumerate(
+        (
+            lambda im: encode(im, "jpeg", 90),
+            lambda im: _driver_jpeg(_colour(im)),
+            lambda im: _driver_jpeg(_colour(im), sampling="4:2:2"),
+            lambda im: encode(im, "jpeg", 90),
+        )
+    ):
+        data = make(frames[k])
+        got = reader.measure(data)
+        assert got.ok, got.reason
+        _same(got, measurer.measure(decode(data)))
+    assert reader.stats.parts == 4
+
+
+def test_damaged_colour_frames_never_show_another_frames_pixels(scene) -> None:
+    """Damaged colour frames (cut short, scan bytes overwritten, restart markers among
+    them) between good ones: each measured without an exception, the damaged one either
+    refused with one reason or measured; the next good frame as its whole frame, nothing
+    of the damaged one left in what it did not decode."""
+    frames, cal = scene
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    rng = np.random.default_rng(21)
+    goods = [_driver_jpeg(_colour(frames[k]), quality=85) for k in (1, 2)]
+    wants = [measurer.measure(decode(g)) for g in goods]
+    layout = jpeg_layout(goods[0])
+    assert layout is not None
+    refused = 0
+    for i in range(10):
+        bad = bytearray(goods[i % 2])
+        if i % 3 == 0:
+            bad = bad[: int(len(bad) * rng.uniform(0.3, 0.9))]  # cut short
+        else:
+            at = rng.integers(len(bad) // 10, len(bad), size=8)
+            bad_bytes = rng.integers(0, 256, size=8).astype(np.uint8)
+            bad_bytes[: i % 4] = 0xFF
+            for a, b in zip(at.tolist(), bad_bytes.tolist(), strict=True):
+                bad[a] = b
+        m = reader.measure(bytes(bad))
+        if not m.ok:
+            refused += 1
+            assert m.reason and "\n" not in m.reason
+        got = reader.measure(goods[(i + 1) % 2])
+        assert got.ok, got.reason
+        _same(got, wants[(i + 1) % 2])
+        canvas = reader._canvas
+        assert canvas is not None
+        assert np.all(canvas[~_done_pixels(reader, layout)] == reader._canvas_level)
+    assert refused > 0
+
+
+def test_a_colour_frame_damaged_in_a_segment_is_refused_or_measured_close(scene) -> None:
+    """Single-bit flips in a colour frame's scan: measured from its parts, a frame still
+    ``ok`` is within 0.5 mm of the clean frame's tip (the fuzz suite's tolerance)."""
+    frames, cal = scene
+    data = _driver_jpeg(_colour(frames[0]), quality=92)
+    measurer = Measurer(cal)
+    clean = measurer.measure(decode(data))
+    assert clean.ok
+    r = np.random.default_rng(8)
+    measured = 0
+    for _ in range(25):
+        out = bytearray(data)
+        i = int(r.integers(600, len(out) - 2))
+        out[i] ^= 1 << int(r.integers(8))
+        reader = RegionReader(measurer)
+        got = reader.measure(bytes(out))
+        if got.ok:
+            measured += 1
+            assert abs(got.tip_lateral_m - clean.tip_lateral_m) <= 0.5e-3
+    assert measured > 5

@@ -16,6 +16,7 @@ from vision.regions import (
     RegionReader,
     _median_sampled,
     _missing,
+    _missing_segments,
     _tube_pixels,
     _tube_points,
 )
@@ -242,3 +243,46 @@ def test_missing_segments_are_the_numpy_forms() -> None:
             got = _missing(blocks, done, interval)
             np.testing.assert_array_equal(got, want)
             assert got.dtype == np.intp
+
+
+def test_missing_segments_of_colour_jpegs_are_the_numpy_forms() -> None:
+    """A colour JPEG's segment is ``interval * H`` blocks across and ``V`` down (here
+    every H, V in {1, 2}; two block rows folded to one, then the word path for 4:4:4 and
+    4:4:0 at beambench's interval of 4, the byte path otherwise): hit when one of its
+    blocks is, missing when also not done."""
+    rng = np.random.default_rng(12)
+    for across, down, per_row, rows in (
+        (8, 2, 5, 4),  # 4:2:0, interval 4
+        (8, 2, 1, 3),
+        (4, 2, 7, 3),  # 4:4:0, interval 4 (or 4:2:0 at 2)
+        (8, 1, 6, 5),  # 4:2:2, interval 4
+        (4, 1, 9, 3),  # 4:4:4, interval 4
+        (2, 2, 3, 6),  # 4:2:0, interval 1
+        (6, 2, 4, 2),  # 4:2:0, interval 3
+        (32, 2, 2, 3),
+    ):
+        for density in (0.0, 0.005, 0.05, 1.0):
+            blocks = rng.random((rows * down, per_row * across)) < density
+            done = rng.random(rows * per_row) < 0.3
+            hits = np.array(
+                [
+                    blocks[r * down : (r + 1) * down, c * across : (c + 1) * across].any()
+                    for r in range(rows)
+                    for c in range(per_row)
+                ]
+            )
+            want = np.flatnonzero(hits & ~done)
+            got = _missing_segments(blocks, done, across, down)
+            np.testing.assert_array_equal(got, want)
+            assert got.dtype == np.intp
+        # one block set at a time: each block belongs to exactly its own segment
+        for r in range(rows * down):
+            for c in range(per_row * across):
+                one = np.zeros((rows * down, per_row * across), dtype=bool)
+                one[r, c] = True
+                own = r // down * per_row + c // across
+                np.testing.assert_array_equal(
+                    _missing_segments(one, np.zeros(rows * per_row, dtype=bool), across, down),
+                    [own],
+                )
+    assert _missing_segments(np.zeros((0, 8), bool), np.zeros(0, bool), 8, 2).size == 0

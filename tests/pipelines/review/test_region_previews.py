@@ -4,7 +4,9 @@ the measured beam and hub (this frame's and the last whole frame's) is this fram
 
 The frames are noise written by ``cv2`` directly (not beambench's renderer or codec
 defaults): 960 x 632 px, a restart marker every 6 MCUs, quality 77, each frame different
-everywhere, so a block taken from the wrong frame cannot pass.
+everywhere, so a block taken from the wrong frame cannot pass; gray, and colour (BGR
+noise, each channel its own, at OpenCV's sampling factors: the previews are of the gray
+decode, the Y component).
 """
 
 from __future__ import annotations
@@ -22,18 +24,33 @@ from pipelines.review.previews import (
 )
 from vision import FrameMeasurement
 from vision.codec import preview
+from vision.jpeg_regions import jpeg_layout
 
 W, H = 960, 632  # the reduced frame's segments do not tile it: encoded whole
 PX_M = 2000.0  # px per m along the fabricated centre lines
 
 
-def _jpeg(seed: int, interval: int = 6, size: tuple[int, int] = (W, H)) -> bytes:
+_SAMPLING = {
+    "4:1:1": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_411,
+    "4:2:0": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420,
+    "4:2:2": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_422,
+    "4:4:0": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_440,
+    "4:4:4": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444,
+}
+
+
+def _jpeg(
+    seed: int, interval: int = 6, size: tuple[int, int] = (W, H), colour: str | None = None
+) -> bytes:
+    """A gray JPEG of noise, or (``colour``: the sampling) a colour one."""
     rng = np.random.default_rng(seed)
     w, h = size
-    image = cv2.GaussianBlur(rng.integers(0, 256, (h, w), dtype=np.uint8), (5, 5), 1.5)
-    ok, buf = cv2.imencode(
-        ".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 77, cv2.IMWRITE_JPEG_RST_INTERVAL, interval]
-    )
+    shape = (h, w) if colour is None else (h, w, 3)
+    image = cv2.GaussianBlur(rng.integers(0, 256, shape, dtype=np.uint8), (5, 5), 1.5)
+    params = [cv2.IMWRITE_JPEG_QUALITY, 77, cv2.IMWRITE_JPEG_RST_INTERVAL, interval]
+    if colour is not None:
+        params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, _SAMPLING[colour]]
+    ok, buf = cv2.imencode(".jpg", image, params)
     assert ok
     return bytes(buf)
 
@@ -68,13 +85,26 @@ def _decoded(data: bytes) -> np.ndarray:
 
 
 @pytest.mark.parametrize(
-    ("r", "interval", "failures"), [(2, 6, False), (4, 8, False), (2, 6, True)]
+    ("r", "interval", "failures", "colour"),
+    [
+        (2, 6, False, None),
+        (4, 8, False, None),
+        (2, 6, True, None),
+        (2, 3, False, "4:2:0"),  # segments of 48 x 16 px, 40 MCU rows (632 px: 39.5)
+        (4, 4, True, "4:2:0"),  # the camera driver's: 64 x 16 px
+        (2, 3, False, "4:2:2"),  # 48 x 8 px
+        (2, 6, False, "4:4:0"),  # 48 x 16 px
+        (4, 8, False, "4:4:4"),  # 64 x 8 px
+    ],
 )
 def test_each_block_is_this_frame_or_the_last_whole_one(
-    r: int, interval: int, failures: bool
+    r: int, interval: int, failures: bool, colour: str | None
 ) -> None:
     shower = RegionPreviews(r)
-    frames = [_jpeg(100 + k, interval) for k in range(WHOLE_EVERY_FRAMES + 3)]
+    frames = [_jpeg(100 + k, interval, colour=colour) for k in range(WHOLE_EVERY_FRAMES + 3)]
+    layout = jpeg_layout(frames[0])
+    mcu_w = 16 if colour in ("4:2:0", "4:2:2") else 8
+    assert layout is not None and layout.segment_px[0] == interval * mcu_w
     angles = [0.9 + 0.05 * k for k in range(len(frames))]
     oks = [True] * len(frames)
     if failures:
@@ -99,7 +129,7 @@ def test_each_block_is_this_frame_or_the_last_whole_one(
         old = np.all(gb == lb, axis=(2, 3))
         assert np.all(this | old), f"frame {k}: a block from neither frame"
         # the measured beam and hub of this frame and of the last whole frame: this frame's
-        shape = (math.ceil(H / 8), W // 8)
+        shape = layout.blocks_shape  # (ceil(H / 8), W // 8) gray, whole MCUs colour
         for a in (angle, last_angle):
             under = region_blocks(_measured(a), shape)
             assert under is not None
@@ -126,6 +156,9 @@ def test_frames_it_cannot_decode_in_parts_are_whole() -> None:
         (RegionPreviews(2), _jpeg(7, interval=5), "jpeg"),
         (RegionPreviews(4), _jpeg(7, interval=6), "jpeg"),
         (RegionPreviews(2, whole=True), _jpeg(7), "jpeg"),
+        (RegionPreviews(2), _jpeg(7, interval=5, colour="4:4:4"), "jpeg"),  # 40 px segments
+        (RegionPreviews(4), _jpeg(7, interval=3, colour="4:2:0"), "jpeg"),  # 48 px
+        (RegionPreviews(2), _jpeg(7, interval=6, colour="4:1:1"), "jpeg"),  # not split
     ]
     png = bytes(cv2.imencode(".png", _decoded(_jpeg(8)))[1])
     cases.append((RegionPreviews(2), png, "png"))
@@ -150,13 +183,13 @@ def test_a_region_needs_the_beam_and_hub_placed() -> None:
         RegionPreviews(3)
 
 
-@pytest.mark.parametrize("r", [2, 4])
+@pytest.mark.parametrize(("r", "colour"), [(2, None), (4, None), (2, "4:2:0"), (4, "4:2:0")])
 def test_the_region_spliced_into_the_whole_frame_is_the_whole_frame_encoded(
-    r: int, monkeypatch: pytest.MonkeyPatch
+    r: int, colour: str | None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # 1024 x 640 at 1/r: the reduced frame's restart segments tile it, so only the
     # segments the region touches are encoded again
-    frames = [_jpeg(300 + k, 8, (1024, 640)) for k in range(8)]
+    frames = [_jpeg(300 + k, 8 if colour is None else 4, (1024, 640), colour) for k in range(8)]
     spliced, whole = RegionPreviews(r), RegionPreviews(r)
     a = [spliced.show(d, "jpeg", _measured(0.5 + 0.07 * k)) for k, d in enumerate(frames)]
     assert spliced.spliced_frames == spliced.region_frames == len(frames) - 1
