@@ -39,7 +39,10 @@ chain decoding it whole, the default method through :class:`vision.regions.Regio
 checks: its last column is the largest difference in the hub angle and the tip over the
 set), every frame without a track (the set's poses are independent: each is read as a
 run's first frame, not helped by its own previous pass). Its errors are those of the JPEG
-frames.
+frames. Its last row, "nominal colour", is the nominal set as a colour camera's driver
+writes it (:mod:`daq.drivers.opencv_camera`: the frame in BGR with a warm cast, OpenCV's
+4:2:0 JPEG at the capture's quality and restart interval), measured from its gray (Y)
+decode as a real colour bench's frames are.
 Per-frame errors use the calibration from the true registration corners (the per-frame
 chain alone); the last lines give the automatic registration detection's corner error,
 what measuring with the detected registration instead of the true one changes, and the
@@ -55,6 +58,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from daq.drivers.opencv_camera import JPEG_RST_INTERVAL_MCU
 from vision import (
     Calibration,
     FrameMeasurement,
@@ -424,14 +428,35 @@ def _time_methods(
 CAPTURE_QUALITY = CameraConfig().jpeg_quality
 
 
+def colour_jpeg(image: np.ndarray, quality: int = CAPTURE_QUALITY) -> bytes:
+    """A gray frame as a colour camera's driver writes it: BGR with a warm cast (blue
+    0.85, green 0.97, red 1.12 of the gray level: its Y within 0.2 % of it, its chroma
+    not flat), OpenCV's JPEG (4:2:0) with the driver's restart interval."""
+    import cv2
+
+    g = image.astype(np.float32)
+    bgr = np.stack((g * 0.85, g * 0.97, g * 1.12), axis=-1)
+    bgr = np.clip(np.round(bgr), 0, 255).astype(np.uint8)
+    params = [cv2.IMWRITE_JPEG_QUALITY, int(quality)]
+    params += [cv2.IMWRITE_JPEG_RST_INTERVAL, JPEG_RST_INTERVAL_MCU]
+    ok, buf = cv2.imencode(".jpg", bgr, params)
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a colour frame")
+    return bytes(buf)
+
+
 def _time_decoded(
-    frames: list[Frame], repeats: int
+    frames: list[Frame], repeats: int, colour: bool = False
 ) -> tuple[dict[str, float], dict[str, list[FrameMeasurement]], tuple[float, float], float]:
     """Seconds per pass with the JPEG decode included (the methods taking turns, the
     fastest pass of each), each method's results, the largest difference (hub rad, tip
     lateral m) of the default method's parts from the same JPEGs decoded whole, and the
-    fraction of segments decoded."""
-    jpegs = [encode(f.image, "jpeg", CAPTURE_QUALITY) for f in frames]
+    fraction of segments decoded (NaN when none was decoded in parts). ``colour``: the
+    frames as a colour camera's driver writes them (:func:`colour_jpeg`)."""
+    if colour:
+        jpegs = [colour_jpeg(f.image) for f in frames]
+    else:
+        jpegs = [encode(f.image, "jpeg", CAPTURE_QUALITY) for f in frames]
     cals = {id(f.calibration): f.calibration for f in frames}
     readers = {k: RegionReader(Measurer(c)) for k, c in cals.items()}
     papers = {k: Measurer(c, method="paper") for k, c in cals.items()}
@@ -599,8 +624,10 @@ def run(quick: bool, sets: tuple[str, ...] = SETS) -> int:
         f"{'set':17s} {'default f/s':>11s} {'paper f/s':>9s} {'ratio':>6s} {'segments':>8s} "
         f"{'hub deg rms':>11s} {'tip lat mm rms':>14s} {'parts-whole hub deg/tip mm':>27s}"
     )
-    for kind, frames in decoded_sets:
-        sec, res, (d_hub, d_tip), frac = _time_decoded(frames, repeats)
+    colour_sets = [("nominal colour", f) for k, f in decoded_sets if k == "nominal"]
+    for i, (kind, frames) in enumerate(decoded_sets + colour_sets):
+        colour = i >= len(decoded_sets)
+        sec, res, (d_hub, d_tip), frac = _time_decoded(frames, repeats, colour)
         r = _errors(frames, res["default"], sec["default"])
         rp = _errors(frames, res["paper"], sec["paper"])
         print(

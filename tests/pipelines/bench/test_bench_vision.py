@@ -6,8 +6,10 @@ import math
 
 import pytest
 
+from daq.drivers.opencv_camera import JPEG_RST_INTERVAL_MCU
 from pipelines.bench import vision as bv
 from vision import Measurer
+from vision.jpeg_regions import jpeg_layout
 
 
 def test_both_methods_time_the_same_frames_and_measure_them() -> None:
@@ -33,6 +35,23 @@ def test_decode_included_timing_measures_the_parts_as_the_whole() -> None:
     assert all(m.ok for m in results["default"]) and all(m.ok for m in results["paper"])
     assert (d_hub, d_tip) == (0.0, 0.0)
     assert 0.0 < fraction < 1.0
+    err = bv._errors(frames, results["default"], seconds["default"])
+    assert err["lat_rms"] <= 0.06 and err["hub_rms"] <= 0.004
+
+
+def test_colour_frames_are_measured_in_parts_as_the_whole() -> None:
+    """The "nominal colour" row: the frames as the colour camera's driver writes them
+    (4:2:0, its restart interval) are decoded in parts (a colour JPEG was decoded whole
+    before), giving exactly what their whole gray decode gives, within the nominal
+    targets."""
+    frames, _ = bv._frames("nominal", 2, 12)
+    jpeg = bv.colour_jpeg(frames[0].image)
+    layout = jpeg_layout(jpeg)
+    assert layout is not None and layout.segment_px == (16 * JPEG_RST_INTERVAL_MCU, 16)
+    seconds, results, (d_hub, d_tip), fraction = bv._time_decoded(frames, 1, colour=True)
+    assert all(m.ok for m in results["default"]) and all(m.ok for m in results["paper"])
+    assert (d_hub, d_tip) == (0.0, 0.0)
+    assert 0.0 < fraction < 0.5
     err = bv._errors(frames, results["default"], seconds["default"])
     assert err["lat_rms"] <= 0.06 and err["hub_rms"] <= 0.004
 
