@@ -29,11 +29,11 @@ from daq.records import Frame
 log = logging.getLogger(__name__)
 
 STILL_SUFFIXES = (".jpg", ".jpeg", ".png")
-#: A restart marker every this many MCUs in the JPEGs written: of a gray frame the processing
-#: decodes only the segments between markers that it measures (vision's codec writes the
-#: same interval, ``vision.codec.RST_INTERVAL_MCU``; other JPEG readers are unaffected).
-#: 4 MCUs: 32 px of an 8-row band of a gray frame. A colour frame (what OpenCV gives for a
-#: colour camera) is decoded whole: the processing splits gray JPEGs only.
+#: A restart marker every this many MCUs in the JPEGs written: the processing decodes only
+#: the segments between markers that it measures (vision's codec writes the same interval,
+#: ``vision.codec.RST_INTERVAL_MCU``; other JPEG readers are unaffected). 4 MCUs: 32 px of
+#: an 8-row band of a gray frame; of a colour frame (what OpenCV gives for a colour camera:
+#: YCbCr, 4:2:0) 64 px of a 16-row band, of which the processing decodes the gray (Y) alone.
 JPEG_RST_INTERVAL_MCU = 4
 
 
