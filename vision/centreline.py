@@ -40,6 +40,11 @@ from vision.sampling import median, median_in_place
 
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
 TUKEY_C = 4.685
+#: The fewest points a hub edge keeps to be fitted as a straight line along the axis (its
+#: offset from one, the line checked by the rest): fewer, at the end or in any pass of
+#: the biweight (where its points may all fall beyond the cut and leave its offset
+#: undetermined), and :func:`fit_clamped_joint` fits the beam's root alone.
+MIN_HUB_EDGE = 3
 
 
 class CentreLine:
@@ -662,33 +667,42 @@ def _irls_k(
     hi: NDArray[np.int64],
     b: NDArray[np.float64],
     ends: NDArray[np.int64],
+    span_ends: NDArray[np.int64],
     keep: NDArray[np.bool_],
     given: bool,
     sig: NDArray[np.float64],
-) -> bool:
+) -> int:
     """:func:`_fit_joint`'s choice of inliers: ``keep`` (another fit's when ``given``,
     else chosen here) and each group's scale ``sig`` (written into the arguments).
     Tukey's biweight, up to five solves, stopping once two in a row keep the same
-    points; False where a solve met a singular matrix."""
+    points. Returns a status as :func:`_joint_k`'s: 0; 2 where a solve would have a
+    hub edge (spans 3 and 4 of ``span_ends``) with fewer than :data:`MIN_HUB_EDGE`
+    points (all its points beyond the biweight's cut leave its offset undetermined:
+    the normal matrix singular); 3 where a solve met a singular matrix."""
     n = b.shape[0]
     w = np.ones(n)
     if given:
+        if _hub_edge_short_k(keep, span_ends):
+            return 2
         for m in range(n):
             w[m] = 1.0 if keep[m] else 0.0
         coef, ok = _wls_k(a_t, lo, hi, b, w)
         _group_scales_k(_residuals_k(a_t, lo, hi, b, coef), ends, keep, given, sig)
-        return ok
+        return 0 if ok else 3
     for m in range(n):
         keep[m] = True
         sig[m] = 1.0
     wk = np.empty(n)
     inside = np.empty(n, dtype=np.bool_)
     for it in range(5):
+        # the points weighed (not 0) in this solve: the kept ones
+        if _hub_edge_short_k(keep, span_ends):
+            return 2
         for m in range(n):
             wk[m] = w[m] / (sig[m] * sig[m])
         coef, ok = _wls_k(a_t, lo, hi, b, wk)
         if not ok:
-            return False
+            return 3
         r = _residuals_k(a_t, lo, hi, b, coef)
         _group_scales_k(r, ends, keep, it != 0, sig)
         same = True
@@ -702,7 +716,21 @@ def _irls_k(
             break
         for m in range(n):
             keep[m] = inside[m]
-    return True
+    return 0
+
+
+@kernel
+def _hub_edge_short_k(keep: NDArray[np.bool_], span_ends: NDArray[np.int64]) -> bool:
+    """Whether a hub edge (spans 3 and 4 of ``span_ends``, where there are) keeps fewer
+    than :data:`MIN_HUB_EDGE` points."""
+    for s in range(2, span_ends.shape[0]):
+        cnt = 0
+        for m in range(span_ends[s - 1], span_ends[s]):
+            if keep[m]:
+                cnt += 1
+        if cnt < MIN_HUB_EDGE:
+            return True
+    return False
 
 
 @kernel
@@ -875,21 +903,25 @@ def _joint_k(
     (:func:`_free_slope_k` on the width, an offset, ``u`` and the shape rows, the last
     ``p_shape`` of ``a_t``, over the beam's points). Returns a status (0: fitted; 1: a
     beam edge keeps fewer than ``min_edge`` points; 2: a hub edge (spans 3 and 4) fewer
-    than 3; 3: a singular normal matrix), the coefficients, the residuals, the inverse
-    normal matrix, the long-run inflation, the edges' lag-1 correlation, and the free
-    slope's coefficient, residual variance and inverse-normal element (NaN if given)."""
+    than :data:`MIN_HUB_EDGE`, at the end or in any solve of :func:`_irls_k`; 3: a
+    singular normal matrix, which the hub's edges, each of at least that many points,
+    cannot make: the beam's edges' points too few or too bunched), the coefficients,
+    the residuals, the inverse normal matrix, the long-run inflation, the edges' lag-1
+    correlation, and the free slope's coefficient, residual variance and inverse-normal
+    element (NaN if given)."""
     k = a_t.shape[0]
     nan = np.nan
     empty2 = np.empty((0, 0))
-    if not _irls_k(a_t, lo, hi, b, ends, keep, given, sig):
-        return 3, b, b, empty2, nan, nan, nan, nan, nan
+    status = _irls_k(a_t, lo, hi, b, ends, span_ends, keep, given, sig)
+    if status != 0:
+        return status, b, b, empty2, nan, nan, nan, nan, nan
     start = 0
     for s in range(span_ends.shape[0]):
         cnt = 0
         for m in range(start, span_ends[s]):
             if keep[m]:
                 cnt += 1
-        if cnt < (min_edge if s < 2 else 3):
+        if cnt < (min_edge if s < 2 else MIN_HUB_EDGE):
             return 1 if s < 2 else 2, b, b, empty2, nan, nan, nan, nan, nan
         start = span_ends[s]
     coef, r, inv, ok = _final_k(a_t, lo, hi, b, ends, keep, sig, p_shape + 2)
@@ -1324,8 +1356,8 @@ def _fit_joint(
         extra,
         np.ascontiguousarray(g_shape, dtype=np.float64),
     )
-    if status == 3:
-        raise np.linalg.LinAlgError("Singular matrix")
+    if status == 3:  # not the hub's edges (status 2): the beam's too few or bunched
+        return "beam edges too few to fit the beam's shape"
     if status == 1:
         return "beam edges too ragged"
     if status == 2:  # the hub's edges are not straight lines: the beam's root alone

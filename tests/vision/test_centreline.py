@@ -159,6 +159,64 @@ def test_stated_axis_and_tip_uncertainties_match_the_scatter() -> None:
 
 
 # -- the cantilever's mode space -----------------------------------------------------
+def _stepped_hub(rng, step_m):
+    """A 180 mm hub's edges, the second seen 3 mm further out over its half nearer the
+    clamp (a bar lying against it there) and over its outer 175 mm only."""
+    ha, hb = _hub_edges(rng, 3e-5, length_m=0.18, n=150)
+    hb = hb[5:].copy()
+    hb[hb[:, 0] > -0.09, 1] -= step_m
+    return ha, hb
+
+
+def test_a_hub_edge_the_biweight_empties_leaves_the_beams_root_alone() -> None:
+    """The stepped hub edge: the straight one (more points) sets the hub's scale, and
+    after the first solve every point of the stepped one lies beyond the cut. Its offset
+    then has no point (formerly a singular matrix, raised: the frame refused as
+    "measurement failed"); the fit is the beam's root alone, as for a hub whose edges
+    are not straight lines: the same fit, stating its own uncertainty."""
+    none = np.zeros((0, 2))
+    turns, sds = [], []
+    for seed in range(3):
+        rng = np.random.default_rng(40 + seed)
+        left, right = _edges(_static_tip_load, rng, 3e-5)
+        ha, hb = _stepped_hub(rng, 3e-3)
+        trial = math.radians(0.5 * seed)
+        pts = [_turned(p, trial) for p in (left, right, ha, hb)]
+        fit = fit_clamped_joint(*pts, 8, 0.81, CLAMP_M)
+        root = fit_clamped_joint(*pts[:2], none, none, 8, 0.81, CLAMP_M)
+        assert not isinstance(fit, str) and not isinstance(root, str)
+        assert math.isnan(fit.hub_width) and math.isnan(fit.hub_rms)
+        assert fit.rotation_rad == root.rotation_rad
+        assert fit.rotation_sd_rad == root.rotation_sd_rad and fit.fit.tip_sd == root.fit.tip_sd
+        # the trial axis is `trial` off the truth: the turn back within 3 stated sd
+        turns.append(fit.rotation_rad + trial)
+        sds.append(fit.rotation_sd_rad)
+    assert np.all(np.abs(turns) <= 3 * np.array(sds)), (turns, sds)
+    # another fit's inliers keeping none of the stepped edge's points: the root alone
+    rng = np.random.default_rng(40)
+    left, right = _edges(_static_tip_load, rng, 3e-5)
+    ha, hb = _stepped_hub(rng, 3e-3)
+    given = np.ones(len(left) + len(right) + len(ha) + len(hb), dtype=bool)
+    given[-len(hb) :] = False
+    fit = fit_clamped_joint(left, right, ha, hb, 8, 0.81, CLAMP_M, inliers=given)
+    root = fit_clamped_joint(left, right, none, none, 8, 0.81, CLAMP_M)
+    assert not isinstance(fit, str) and not isinstance(root, str)
+    assert math.isnan(fit.hub_width) and fit.rotation_rad == root.rotation_rad
+
+
+def test_beam_edges_that_cannot_fix_the_shape_give_a_reason_not_an_error() -> None:
+    """Edge points all at the clamp (a = 0), where every shape function is 0: the shape
+    is undetermined, the normal matrix exactly singular. A reason, as for edges too
+    ragged (formerly numpy's "Singular matrix" raised), with the hub's edges or not."""
+    rng = np.random.default_rng(44)
+    left, right = _edges(lambda a: 0.0 * a, rng, 3e-5, n=40)
+    left[:, 0] = right[:, 0] = 0.0
+    ha, hb = _hub_edges(rng, 3e-5)
+    for hub in ((ha, hb), (np.zeros((0, 2)), np.zeros((0, 2)))):
+        got = fit_clamped_joint(left, right, *hub, 8, 0.81, CLAMP_M)
+        assert got == "beam edges too few to fit the beam's shape"
+
+
 def test_cantilever_modes_are_clamped_and_free() -> None:
     """beta_i L are the roots of cos cosh = -1 (Blevins' table: 1.87510, 4.69409,
     7.85476, 10.99554, 14.13717); each shape has w = w' = 0 at the clamp and zero
