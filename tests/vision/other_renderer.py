@@ -147,6 +147,10 @@ class Bench:
     optics_sigma_px: float = 0.8
     gradient: float = 0.15  # the light's fractional change across the image, left to right
     jpeg_quality: int = 88
+    #: A bar as bright as the hub against one of its long edges, turning with it: (from,
+    #: to) m back from the clamp end, its width m, the side (+1: toward a larger hub
+    #: angle); None: no bar.
+    hub_bar: tuple[float, float, float, int] | None = None
 
 
 def draw_polygons(
@@ -209,7 +213,13 @@ def light(bench: Bench, states: list[BeamState]) -> NDArray[np.float32]:
         e = np.array([math.cos(st.hub_angle_rad), math.sin(st.hub_angle_rad)])
         half_len, half_w = bench.hub_length_m / 2, bench.hub_width_m / 2
         hub = _rect((HUB_OFFSET_M - half_len) * e, e, half_len, half_w)
-        return [(hub, bench.hub_dn), (st.outline(bench.beam_width_m), bench.beam_dn)]
+        shapes = [(hub, bench.hub_dn), (st.outline(bench.beam_width_m), bench.beam_dn)]
+        if bench.hub_bar is not None:
+            a0, a1, w, side = bench.hub_bar
+            n = np.array([-e[1], e[0]])
+            c = (HUB_OFFSET_M - 0.5 * (a0 + a1)) * e + side * (half_w + 0.5 * w) * n
+            shapes.insert(1, (_rect(c, e, 0.5 * (a1 - a0), 0.5 * w), bench.hub_dn))
+        return shapes
 
     def draw(shapes, x0, y0, w, h):  # type: ignore[no-untyped-def]
         px = [(cam.px(poly), level) for poly, level in shapes]
