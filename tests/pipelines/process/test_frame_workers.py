@@ -265,12 +265,9 @@ def test_workers_stopped_while_starting_leave_the_executor_finished() -> None:
     assert _children("multiprocessing.spawn") == []
 
 
-def test_a_fresh_kernel_cache_measures_the_first_frames_here(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    # a cold cache: the first chunk is measured in this process (compiling the kernels
-    # once), the rest by the workers; the same frames, in order, handed on once each
-    monkeypatch.setattr(frames_module, "kernels_cached", lambda: False)
+def _spy_measured_here(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The sequence numbers of the frames measured in this process (not by the workers),
+    filled in as they are."""
     here: list[int] = []
     real = frames_module._measure_here
 
@@ -280,6 +277,16 @@ def test_a_fresh_kernel_cache_measures_the_first_frames_here(
         return got
 
     monkeypatch.setattr(frames_module, "_measure_here", spy)
+    return here
+
+
+def test_a_fresh_kernel_cache_measures_the_first_frames_here(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a cold cache: the first chunk is measured in this process (compiling the kernels
+    # once), the rest by the workers; the same frames, in order, handed on once each
+    monkeypatch.setattr(frames_module, "kernels_cached", lambda: False)
+    here = _spy_measured_here(monkeypatch)
     handed: list[int] = []
     out = measure_frames(
         _frames(13),
@@ -308,15 +315,7 @@ def test_a_cache_cold_when_the_workers_started_measures_the_first_frames_here(
     # measured here then (compiled once), not by each worker at once
     state = {"cached": False}
     monkeypatch.setattr(frames_module, "kernels_cached", lambda: state["cached"])
-    here: list[int] = []
-    real = frames_module._measure_here
-
-    def spy(items, *args, **kwargs):  # type: ignore[no-untyped-def]
-        got = real(items, *args, **kwargs)
-        here.extend(f.sequence for f in got)
-        return got
-
-    monkeypatch.setattr(frames_module, "_measure_here", spy)
+    here = _spy_measured_here(monkeypatch)
     started = frames_module.start_workers(2)
     assert started is not None and not started.kernels_cached
     state["cached"] = True  # the calibration compiled some
