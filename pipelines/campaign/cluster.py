@@ -94,13 +94,40 @@ def _probe(client: Any) -> None:
         raise _lost(client, f"no answer within {PROBE_TIMEOUT_S:g} s") from None
 
 
+def quiet_dask_logs() -> dict[str, int]:
+    """Raise every ``distributed`` logger of this process to CRITICAL; their previous
+    levels by name. (Dask configures some of its loggers' levels itself: each is raised,
+    not only the parent.)"""
+    levels = {}
+    for name in ["distributed", *logging.root.manager.loggerDict]:
+        if name == "distributed" or name.startswith("distributed."):
+            log = logging.getLogger(name)
+            levels[name] = log.level
+            log.setLevel(logging.CRITICAL)
+    return levels
+
+
+def _quiet_workers(client: Any) -> None:
+    """Quiet the embedded workers' Dask loggers before they are stopped.
+
+    A worker stopping while its heartbeat to the scheduler is under way logs the closed
+    connection at ERROR with a traceback ("Failed to communicate with scheduler during
+    heartbeat", dask/distributed#7105, open): the worker stops its periodic callbacks but
+    not one already running, then closes its connections under it. The workers share this
+    process's stderr, so a finished campaign could end in thirty lines of someone else's
+    traceback. Their stopping is not the user's business; with ``-v`` it is left as is.
+    A worker that does not answer within :data:`CONNECT_TIMEOUT_S` is stopped regardless.
+    """
+    if logging.getLogger().isEnabledFor(logging.INFO) or client.status != "running":
+        return
+    with contextlib.suppress(Exception):
+        client.run(quiet_dask_logs, on_error="ignore", callback_timeout=CONNECT_TIMEOUT_S)
+
+
 def _lost(client: Any, how: str = "connection closed") -> SchedulerLost:
     # Dask's client now logs its reconnection attempts and their cancellation at ERROR;
     # the SchedulerLost line says it all.
-    # (Dask configures some of its loggers' levels itself: each is raised, not the parent.)
-    for name in ["distributed", *logging.root.manager.loggerDict]:
-        if name == "distributed" or name.startswith("distributed."):
-            logging.getLogger(name).setLevel(logging.CRITICAL)
+    quiet_dask_logs()
     address = getattr(client.scheduler, "address", "?")
     return SchedulerLost(f"lost the scheduler {address} ({how})")
 
@@ -149,11 +176,17 @@ def open_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
         silence_logs=logging.ERROR,
     )
+    levels: dict[str, int] = {}
     try:
         client = Client(cluster, set_as_default=False)
         try:
             yield client
         finally:
+            _quiet_workers(client)
             client.close()
     finally:
+        if not logging.getLogger().isEnabledFor(logging.INFO):
+            levels = quiet_dask_logs()  # the nannies here race the same way
         cluster.close()
+        for name, level in levels.items():
+            logging.getLogger(name).setLevel(level)
