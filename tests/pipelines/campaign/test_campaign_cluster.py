@@ -114,15 +114,19 @@ class Cluster:
             c.wait_for_workers(n, timeout=60)
 
     def close(self) -> None:
-        for p in self.procs.values():
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-        for p in self.procs.values():
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        # the workers first: a worker whose scheduler left before it was stopped may try
+        # to reconnect instead of exiting (in one case of two here: 10 s, then killed)
+        workers = [p for name, p in self.procs.items() if name != "scheduler"]
+        for group in (workers, [self.procs["scheduler"]]):
+            for p in group:
+                if p.poll() is None:
+                    p.send_signal(signal.SIGTERM)
+            for p in group:
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
 
 
 @pytest.fixture(scope="module")
