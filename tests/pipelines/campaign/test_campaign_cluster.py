@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pipelines.campaign import cluster as cluster_module
 from pipelines.campaign.catalogue import read_catalogue, rows_of
 from pipelines.campaign.summary import summarise_run
 from pipelines.cli import main
@@ -240,7 +241,10 @@ def test_a_failed_run_is_recorded_and_a_rerun_does_only_what_is_missing(
 
 
 def test_bad_input_is_one_error_line(
-    log_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    log_dir: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     empty = tmp_path / "empty"
     empty.mkdir()
@@ -257,6 +261,8 @@ def test_bad_input_is_one_error_line(
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
+    # Dask retries a refused connection until the timeout: 1 s here instead of 5
+    monkeypatch.setattr(cluster_module, "CONNECT_TIMEOUT_S", 1.0)
     t0 = time.monotonic()
     rc = main(
         [
