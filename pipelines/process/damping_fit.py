@@ -43,6 +43,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -96,6 +97,9 @@ CHI2_FLAG = 2.0
 # the finite elements with the gauges' strains checked), in at most EXACT_STEPS runs.
 EXACT_TOL = 1e-3
 EXACT_CYCLES = 3
+# the loop model's runs kept for a repeated request (8: the 2 x 2 Jacobian of a0's test
+# lies between the least squares' end and the next request of that point)
+CHEAP_RUNS_KEPT = 8
 A_MIN = 1e-4  # search bounds of a0 [1/s] and a1 [s]
 A1_MAX_S = 10.0
 
@@ -258,6 +262,12 @@ class _RunSimulator:
     law: str
     t_s: FloatArray
     drive: TraceDrive | FittedTraceDrive
+    # the loop model's latest runs by (a0, a1, end): the fit asks for some twice or three
+    # times (its start, the least squares' end point, the Jacobian's centre), and a
+    # simulation is a pure function of them
+    _cheap_runs: OrderedDict[tuple[float, float, float | None], SimResult] = field(
+        default_factory=OrderedDict, compare=False, repr=False
+    )
 
     def _until(self, end_s: float | None) -> FloatArray:
         if end_s is None:
@@ -265,6 +275,17 @@ class _RunSimulator:
         return self.t_s[: int(np.searchsorted(self.t_s, end_s, side="right")) + 1]
 
     def cheap(self, a0: float, a1: float, end_s: float | None = None) -> SimResult:
+        key = (a0, a1, end_s)
+        if key in self._cheap_runs:
+            self._cheap_runs.move_to_end(key)
+            return self._cheap_runs[key]
+        sim = self._simulate_cheap(a0, a1, end_s)
+        self._cheap_runs[key] = sim
+        if len(self._cheap_runs) > CHEAP_RUNS_KEPT:
+            self._cheap_runs.popitem(last=False)
+        return sim
+
+    def _simulate_cheap(self, a0: float, a1: float, end_s: float | None) -> SimResult:
         from sim.models.registry import simulate
 
         return simulate(

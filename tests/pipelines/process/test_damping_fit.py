@@ -294,3 +294,25 @@ def test_a_fit_whose_damping_rings_longer_than_the_start_up_skipped_gives_no_num
     # the first whole cycle after the 2.9 s starts at 3.5 s
     assert "rings for 9.7 s" in fit.reason and "longer than the 3.5 s skipped" in fit.reason
     assert "fitted_a1_s" not in fit.as_attrs()
+
+
+def test_the_loop_models_repeated_runs_are_simulated_once() -> None:
+    """The fit asks for some coefficients more than once (its start, the least squares'
+    end point, the Jacobian's centre): the loop model's latest runs are kept, and a run
+    simulated again after it was dropped is the same, bit for bit."""
+    from pipelines.process.damping_fit import CHEAP_RUNS_KEPT, _RunSimulator
+    from sim.trace_fit import FittedTraceDrive
+
+    rig = load_rig()
+    t, rocker, _ = crank_record(rig, 3.0)
+    sims = _RunSimulator(rig, "material", t, FittedTraceDrive(t, rocker))
+    first = sims.cheap(0.07, 0.07)
+    assert sims.cheap(0.07, 0.07) is first
+    shorter = sims.cheap(0.07, 0.07, 2.0)
+    assert shorter is not first and shorter.time_s.size < first.time_s.size
+    for i in range(CHEAP_RUNS_KEPT):
+        assert sims.cheap(0.07, 0.08 + 0.01 * i) is not first
+    again = sims.cheap(0.07, 0.07)
+    assert again is not first
+    np.testing.assert_array_equal(again.strain, first.strain)
+    np.testing.assert_array_equal(again.tip_lateral_m, first.tip_lateral_m)
