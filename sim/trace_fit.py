@@ -360,6 +360,7 @@ class FittedTraceDrive:
         # cosine and sine coefficients of the angle, the rate and the acceleration
         self._ab = ((ca, cb), (w * cb, -w * ca), (-w * w * ca, -w * w * cb))
         self._last: tuple[float, FloatArray, FloatArray] | None = None
+        self._last_many: tuple[FloatArray, FloatArray, FloatArray] | None = None
         self._d1 = self._spline.derivative(1) if self._spline is not None else None
         self._d2 = self._spline.derivative(2) if self._spline is not None else None
         self.settings: dict[str, Any] = {
@@ -419,13 +420,20 @@ class FittedTraceDrive:
         return t
 
     def _cos_sin(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
-        # the solvers ask for the rate and the acceleration at the same scalar time
-        if t.ndim == 0 and self._last is not None and self._last[0] == float(t):
-            return self._last[1], self._last[2]
+        # the solvers ask for the rate and the acceleration at the same times: one time
+        # at a time (the adaptive ones) or every stage time of a run at once (the batched
+        # linear Radau), so the last times' cos and sin are kept
+        if t.ndim == 0:
+            if self._last is not None and self._last[0] == float(t):
+                return self._last[1], self._last[2]
+        elif self._last_many is not None and np.array_equal(self._last_many[0], t):
+            return self._last_many[1], self._last_many[2]
         phase = np.multiply.outer(t - self._t_ref_s, self._w)
         c, s = np.cos(phase), np.sin(phase)
         if t.ndim == 0:
             self._last = (float(t), c, s)
+        else:
+            self._last_many = (t.copy(), c, s)
         return c, s
 
     def _harmonics(self, t: FloatArray, order: int) -> FloatArray:

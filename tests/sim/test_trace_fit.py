@@ -222,3 +222,23 @@ def test_splines_fitted_together_are_each_ones_alone_bit_for_bit() -> None:
         assert np.array_equal(got[0](t).view(np.int64), best[0](t).view(np.int64))
         d2 = got[0].derivative(2)(t)
         assert np.array_equal(d2.view(np.int64), best[0].derivative(2)(t).view(np.int64))
+
+
+def test_the_kept_cos_and_sin_are_the_times_asked_for() -> None:
+    """The rate and the acceleration at the same times share one cos and sin (the batched
+    solver asks for both at every stage time of a run); other times, of the same shape or
+    changed in place, are computed afresh: every value bit for bit a fresh drive's."""
+    t, y, _, _ = _measured(8.0, seed=14)
+    d, fresh = FittedTraceDrive(t, y), FittedTraceDrive(t, y)
+    ts = np.linspace(t[0] + 0.5, t[-1] - 0.5, 3001)
+    other = ts[::-1].copy()
+    for times in (ts, ts, other, ts[:-1], ts[0]):
+        for name in ("rate", "accel", "angle"):
+            np.testing.assert_array_equal(getattr(d, name)(times), getattr(fresh, name)(times))
+            fresh = FittedTraceDrive(t, y)
+    inplace = ts.copy()
+    before = d.rate(inplace)
+    inplace += 0.1
+    after = d.rate(inplace)
+    assert not np.array_equal(before, after)
+    np.testing.assert_array_equal(after, FittedTraceDrive(t, y).rate(inplace))
