@@ -47,6 +47,7 @@ estimated tip error meets rtol (relative to the largest tip deflection) + atol.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from collections.abc import Sequence
@@ -252,7 +253,17 @@ def integrate_modal(
 def station_foreshortening_matrices(
     length_m: float, stations_m: FloatArray, n_modes: int
 ) -> FloatArray:
-    """D(s) = int_0^s Phi_i' Phi_j' dx for each station, shape (S, n, n) (1/m)."""
+    """D(s) = int_0^s Phi_i' Phi_j' dx for each station, shape (S, n, n) (1/m); read-only
+    (kept for the next simulation of the same beam: a damping fit runs a hundred)."""
+    stations = np.ascontiguousarray(stations_m, dtype=float)
+    return _foreshortening(float(length_m), stations.tobytes(), stations.shape, int(n_modes))
+
+
+@functools.lru_cache(maxsize=16)
+def _foreshortening(
+    length_m: float, stations: bytes, shape: tuple[int, ...], n_modes: int
+) -> FloatArray:
+    stations_m = np.frombuffer(stations, dtype=float).reshape(shape)
     out = np.zeros((stations_m.size, n_modes, n_modes))
     for k, s in enumerate(stations_m):
         if s <= 0.0:
@@ -260,6 +271,7 @@ def station_foreshortening_matrices(
         x, w = gauss_points(float(s), n_panels=max(4, n_modes), order=16)
         d = mode_shapes(np.minimum(x, length_m), length_m, n_modes, 1)
         out[k] = (d.T * w) @ d
+    out.setflags(write=False)
     return out
 
 

@@ -13,6 +13,7 @@ from sim.config import BeamConfig
 from sim.drives import SinusoidDrive, SpinUpDrive
 from sim.models.modal import ModalModel, integrate_modal, simulate_modal
 from sim.models.rigid import simulate_rigid
+from sim.modes import mode_shapes
 
 BEAM = BeamProperties.from_config(BeamConfig())
 GAUGES = [0.005, 0.204, 0.403, 0.603]
@@ -161,3 +162,24 @@ def test_energy_balance_with_damping_on_accounts_for_the_dissipation() -> None:
     assert loss[-1] > 1e-3 * np.abs(energy).max()
     assert np.abs(work - loss - (energy - energy[0])).max() < 1e-7 * np.abs(energy).max()
     assert np.abs(model.rotation_damping).max() > 0.0
+
+
+def test_station_foreshortening_is_the_integral_and_kept_read_only() -> None:
+    """D(s) = int_0^s Phi' Phi'^T: against a plain trapezoid sum on a fine grid; the kept
+    matrices of an earlier call (a damping fit simulates one beam a hundred times) are
+    read-only and are the ones of the stations asked for, not of earlier ones."""
+    from sim.models.modal import station_foreshortening_matrices
+
+    length, n = 0.835, 4
+    stations = np.array([0.0, 0.2, 0.61, length])
+    d = station_foreshortening_matrices(length, stations, n)
+    for s, got in zip(stations, d, strict=True):
+        x = np.linspace(0.0, s, 20001)
+        slope = mode_shapes(x, length, n, 1)
+        want = np.trapezoid(slope[:, :, None] * slope[:, None, :], x, axis=0)
+        np.testing.assert_allclose(got, want, rtol=1e-7, atol=1e-9)
+    assert station_foreshortening_matrices(length, stations.copy(), n) is d
+    assert not d.flags.writeable
+    other = station_foreshortening_matrices(length, stations[::-1].copy(), n)
+    np.testing.assert_array_equal(other, d[::-1])
+    assert station_foreshortening_matrices(length, stations, n - 1).shape == (4, n - 1, n - 1)
