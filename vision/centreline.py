@@ -1153,7 +1153,9 @@ class JointFit:
     for, and ``rotation_sd_rad`` its standard uncertainty; ``fit``: the centre line in
     the turned frame (its ``tip_sd`` includes the axis's uncertainty); ``hub_width`` and
     ``hub_offset``: the hub edges' distance apart and their mid-line's offset from the
-    pivot's line (NaN without hub edges); ``hub_rms``: their RMS residual."""
+    pivot's line (NaN without hub edges); ``hub_rms``: their RMS residual;
+    ``hub_width_sd``: the width's standard uncertainty (the two offsets' difference
+    through the fit's covariance; NaN without hub edges)."""
 
     rotation_rad: float
     rotation_sd_rad: float
@@ -1171,6 +1173,12 @@ class JointFit:
     #: Which points (the beam's left, right, then the hub's edges, as given) the fit
     #: kept (None where not recorded).
     inliers: NDArray[np.bool_] | None = None
+    hub_width_sd: float = math.nan
+    #: Whether the hub's edges are the straight lines the fit takes them for: the
+    #: larger of the two edges' fractions of points the biweight left out (NaN without
+    #: hub edges), and the larger of their residuals' lag-1 correlations along them.
+    hub_outlier_fraction: float = math.nan
+    hub_edge_rho: float = math.nan
 
 
 def fit_clamped_joint(
@@ -1412,10 +1420,16 @@ def _fit_joint(
         outlier_fraction=1.0 - n_kb / n_beam,
         end_cov=end_cov,
     )
+    hub_out, hub_rho = math.nan, math.nan
     if use_hub:
+        var_w = float(cov[2, 2] + cov[3, 3] - 2.0 * cov[2, 3])
         hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
+        hub_w_sd = math.sqrt(max(var_w, 0.0))
+        hub_out, hub_rho = _hub_straightness(
+            hub_a, hub_b, keep[n_beam:], float(coef[1]), clamp_from_pivot, coef[2:4]
+        )
     else:
-        hub = (math.nan, math.nan)
+        hub, hub_w_sd = (math.nan, math.nan), math.nan
     return JointFit(
         rotation_rad=float(coef[1]),
         rotation_sd_rad=math.sqrt(max(float(cov[1, 1]), 0.0)),
@@ -1426,7 +1440,36 @@ def _fit_joint(
         shape_chi2=shape_chi2,
         shape_dof=shape_dof,
         inliers=keep,
+        hub_width_sd=hub_w_sd,
+        hub_outlier_fraction=hub_out,
+        hub_edge_rho=hub_rho,
     )
+
+
+def _hub_straightness(
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    keep: NDArray[np.bool_],
+    turn: float,
+    clamp_from_pivot: float,
+    offsets: NDArray[np.float64],
+) -> tuple[float, float]:
+    """Of the hub's two edges fitted as straight lines (``turn`` and their ``offsets``,
+    ``keep``: their points' inliers, edge a's first): the larger fraction of an edge's
+    points left out, and the larger lag-1 correlation of an edge's kept residuals
+    ordered along it (:func:`lag1_correlation`). Image noise leaves out next to none
+    and correlates little; an edge that steps (a bar lying against part of it) leaves
+    out the part that steps, or, kept, gives residuals in one run."""
+    out, rho = 0.0, -1.0
+    start = 0
+    for pts, h in ((hub_a, offsets[0]), (hub_b, offsets[1])):
+        k = keep[start : start + len(pts)]
+        start += len(pts)
+        out = max(out, 1.0 - float(np.count_nonzero(k)) / max(len(pts), 1))
+        p = pts[k]
+        r = p[:, 1] - turn * (p[:, 0] + clamp_from_pivot) - float(h)
+        rho = max(rho, lag1_correlation(r[np.argsort(p[:, 0], kind="stable")]))
+    return out, rho
 
 
 #: Empties for :func:`_fit_joint`: no points, no values, no rows (writable, as every
