@@ -1174,11 +1174,11 @@ class JointFit:
     #: kept (None where not recorded).
     inliers: NDArray[np.bool_] | None = None
     hub_width_sd: float = math.nan
-    #: Whether the hub's edges are the straight lines the fit takes them for: the
-    #: larger of the two edges' fractions of points the biweight left out (NaN without
-    #: hub edges), and the larger of their residuals' lag-1 correlations along them.
-    hub_outlier_fraction: float = math.nan
-    hub_edge_rho: float = math.nan
+    #: Whether the hub's edges are the straight lines the fit takes them for (computed
+    #: when called: a frame asks its final fit only): the larger of the two edges'
+    #: fractions of points the biweight left out, and the larger of their kept
+    #: residuals' lag-1 correlations along them (NaN, NaN without hub edges).
+    hub_straightness: Callable[[], tuple[float, float]] = lambda: (math.nan, math.nan)
 
 
 def fit_clamped_joint(
@@ -1420,14 +1420,23 @@ def _fit_joint(
         outlier_fraction=1.0 - n_kb / n_beam,
         end_cov=end_cov,
     )
-    hub_out, hub_rho = math.nan, math.nan
+
+    def straightness() -> tuple[float, float]:
+        if not use_hub:
+            return math.nan, math.nan
+        return _hub_straightness(
+            np.ascontiguousarray(hub_a, dtype=np.float64),
+            np.ascontiguousarray(hub_b, dtype=np.float64),
+            keep[n_beam:],
+            float(coef[1]),
+            float(clamp_from_pivot),
+            np.ascontiguousarray(coef[2:4], dtype=np.float64),
+        )
+
     if use_hub:
         var_w = float(cov[2, 2] + cov[3, 3] - 2.0 * cov[2, 3])
         hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
         hub_w_sd = math.sqrt(max(var_w, 0.0))
-        hub_out, hub_rho = _hub_straightness(
-            hub_a, hub_b, keep[n_beam:], float(coef[1]), clamp_from_pivot, coef[2:4]
-        )
     else:
         hub, hub_w_sd = (math.nan, math.nan), math.nan
     return JointFit(
@@ -1441,11 +1450,11 @@ def _fit_joint(
         shape_dof=shape_dof,
         inliers=keep,
         hub_width_sd=hub_w_sd,
-        hub_outlier_fraction=hub_out,
-        hub_edge_rho=hub_rho,
+        hub_straightness=straightness,
     )
 
 
+@kernel
 def _hub_straightness(
     hub_a: NDArray[np.float64],
     hub_b: NDArray[np.float64],
@@ -1462,13 +1471,35 @@ def _hub_straightness(
     out the part that steps, or, kept, gives residuals in one run."""
     out, rho = 0.0, -1.0
     start = 0
-    for pts, h in ((hub_a, offsets[0]), (hub_b, offsets[1])):
-        k = keep[start : start + len(pts)]
-        start += len(pts)
-        out = max(out, 1.0 - float(np.count_nonzero(k)) / max(len(pts), 1))
-        p = pts[k]
-        r = p[:, 1] - turn * (p[:, 0] + clamp_from_pivot) - float(h)
-        rho = max(rho, lag1_correlation(r[np.argsort(p[:, 0], kind="stable")]))
+    for edge in range(2):
+        pts = hub_a if edge == 0 else hub_b
+        n = pts.shape[0]
+        # the kept residuals ordered along the edge (a stable insertion sort: the
+        # points come nearly in order)
+        u, r = np.empty(n), np.empty(n)
+        m = 0
+        for i in range(n):
+            if not keep[start + i]:
+                continue
+            ui = pts[i, 0]
+            ri = pts[i, 1] - turn * (ui + clamp_from_pivot) - offsets[edge]
+            j = m
+            while j > 0 and u[j - 1] > ui:
+                u[j], r[j] = u[j - 1], r[j - 1]
+                j -= 1
+            u[j], r[j] = ui, ri
+            m += 1
+        start += n
+        out = max(out, 1.0 - m / max(n, 1))
+        if m < 4:
+            rho = max(rho, 0.0)
+            continue
+        den, num = 0.0, 0.0
+        for i in range(m):
+            den += r[i] * r[i]
+            if i:
+                num += r[i] * r[i - 1]
+        rho = max(rho, num / den if den > 0 else 0.0)
     return out, rho
 
 

@@ -92,7 +92,7 @@ def hub_axis(
         raise FrameFailure("hub edges not straight")
     e = np.array([c, s])
     n = np.array([-s, c])
-    (ua, ra), (ub, rb) = along_a, along_b
+    ra, rb = along_a[1], along_b[1]
     dof = max(len(ra) + len(rb) - 3, 1)
     infl = max(correlation_inflation(ra), correlation_inflation(rb))
     sd = math.sqrt(res_ss / dof / max(spread, 1e-18) * infl)
@@ -104,18 +104,49 @@ def hub_axis(
     # bar are parallel: each edge's own direction agrees with the other's within their
     # noise unless one is no straight line (a step kept in the fit); Birge's ratio of
     # their disagreement to its noise, where above 1, scales the sd.
-    tilt, var, s_ur, s_uu = [], [], 0.0, 0.0
-    for u, r in ((ua, ra), (ub, rb)):
-        suu = max(float(u @ u), 1e-18)
-        t = float(u @ r) / suu
-        rest = r - t * u
-        tilt.append(t)
-        var.append(float(rest @ rest) / max(len(r) - 2, 1) / suu * correlation_inflation(rest))
-        s_ur, s_uu = s_ur + float(u @ r), s_uu + suu
-    chi2 = (tilt[0] - tilt[1]) ** 2 / max(var[0] + var[1], 1e-300)
-    turn = s_ur / s_uu
+    chi2, turn = _axis_checks(along_a, along_b)
     sd = math.hypot(sd * max(1.0, math.sqrt(chi2)), turn)
     return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
+
+
+@kernel
+def _axis_checks(along_a: NDArray[np.float64], along_b: NDArray[np.float64]) -> tuple[float, float]:
+    """:func:`hub_axis`'s checks on its direction from each edge's positions along it
+    and residuals across it (:func:`_along`): the chi-squared of the two edges' own
+    directions' difference (their slopes of residual on position; each one's variance
+    from its scatter about its own line, inflated for lag-1 correlation as
+    :func:`vision.centreline.correlation_inflation`), and the kept points' common
+    slope (the turn one more fit would make)."""
+    tilt, var = np.zeros(2), np.zeros(2)
+    s_ur, s_uu = 0.0, 0.0
+    for k in range(2):
+        al = along_a if k == 0 else along_b
+        u, r = al[0], al[1]
+        n = u.shape[0]
+        suu, sur = 0.0, 0.0
+        for i in range(n):
+            suu += u[i] * u[i]
+            sur += u[i] * r[i]
+        suu = max(suu, 1e-18)
+        t = sur / suu
+        ss, lag = 0.0, 0.0
+        prev = 0.0
+        for i in range(n):
+            q = r[i] - t * u[i]
+            ss += q * q
+            if i:
+                lag += q * prev
+            prev = q
+        infl = 1.0
+        if n >= 4 and ss > 0:
+            rho = min(max(lag / ss, 0.0), 0.9)
+            infl = (1.0 + rho) / (1.0 - rho)
+        tilt[k] = t
+        var[k] = ss / max(n - 2, 1) / suu * infl
+        s_ur += sur
+        s_uu += suu
+    chi2 = (tilt[0] - tilt[1]) ** 2 / max(var[0] + var[1], 1e-300)
+    return chi2, s_ur / s_uu
 
 
 @kernel

@@ -329,10 +329,8 @@ class Measurer:
         hub_w_measured, hub_w_sd = math.nan, math.nan
         if math.isfinite(joint.hub_width):
             hub_w = joint.hub_width
-            if (
-                joint.hub_outlier_fraction <= _MAX_HUB_OUTLIER_FRACTION
-                and joint.hub_edge_rho <= self.max_edge_correlation
-            ):
+            hub_out, hub_rho = joint.hub_straightness()
+            if hub_out <= _MAX_HUB_OUTLIER_FRACTION and hub_rho <= self.max_edge_correlation:
                 hub_w_measured, hub_w_sd = hub_w, joint.hub_width_sd
         fit = joint.fit
         if e_hub is not None:
