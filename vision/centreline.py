@@ -1153,7 +1153,9 @@ class JointFit:
     for, and ``rotation_sd_rad`` its standard uncertainty; ``fit``: the centre line in
     the turned frame (its ``tip_sd`` includes the axis's uncertainty); ``hub_width`` and
     ``hub_offset``: the hub edges' distance apart and their mid-line's offset from the
-    pivot's line (NaN without hub edges); ``hub_rms``: their RMS residual."""
+    pivot's line (NaN without hub edges); ``hub_rms``: their RMS residual;
+    ``hub_width_sd``: the width's standard uncertainty (the two offsets' difference
+    through the fit's covariance; NaN without hub edges)."""
 
     rotation_rad: float
     rotation_sd_rad: float
@@ -1171,6 +1173,12 @@ class JointFit:
     #: Which points (the beam's left, right, then the hub's edges, as given) the fit
     #: kept (None where not recorded).
     inliers: NDArray[np.bool_] | None = None
+    hub_width_sd: float = math.nan
+    #: Whether the hub's edges are the straight lines the fit takes them for (computed
+    #: when called: a frame asks its final fit only): the larger of the two edges'
+    #: fractions of points the biweight left out, and the larger of their kept
+    #: residuals' lag-1 correlations along them (NaN, NaN without hub edges).
+    hub_straightness: Callable[[], tuple[float, float]] = lambda: (math.nan, math.nan)
 
 
 def fit_clamped_joint(
@@ -1412,10 +1420,25 @@ def _fit_joint(
         outlier_fraction=1.0 - n_kb / n_beam,
         end_cov=end_cov,
     )
+
+    def straightness() -> tuple[float, float]:
+        if not use_hub:
+            return math.nan, math.nan
+        return _hub_straightness(
+            np.ascontiguousarray(hub_a, dtype=np.float64),
+            np.ascontiguousarray(hub_b, dtype=np.float64),
+            keep[n_beam:],
+            float(coef[1]),
+            float(clamp_from_pivot),
+            np.ascontiguousarray(coef[2:4], dtype=np.float64),
+        )
+
     if use_hub:
+        var_w = float(cov[2, 2] + cov[3, 3] - 2.0 * cov[2, 3])
         hub = (abs(float(coef[2] - coef[3])), 0.5 * float(coef[2] + coef[3]))
+        hub_w_sd = math.sqrt(max(var_w, 0.0))
     else:
-        hub = (math.nan, math.nan)
+        hub, hub_w_sd = (math.nan, math.nan), math.nan
     return JointFit(
         rotation_rad=float(coef[1]),
         rotation_sd_rad=math.sqrt(max(float(cov[1, 1]), 0.0)),
@@ -1426,7 +1449,58 @@ def _fit_joint(
         shape_chi2=shape_chi2,
         shape_dof=shape_dof,
         inliers=keep,
+        hub_width_sd=hub_w_sd,
+        hub_straightness=straightness,
     )
+
+
+@kernel
+def _hub_straightness(
+    hub_a: NDArray[np.float64],
+    hub_b: NDArray[np.float64],
+    keep: NDArray[np.bool_],
+    turn: float,
+    clamp_from_pivot: float,
+    offsets: NDArray[np.float64],
+) -> tuple[float, float]:
+    """Of the hub's two edges fitted as straight lines (``turn`` and their ``offsets``,
+    ``keep``: their points' inliers, edge a's first): the larger fraction of an edge's
+    points left out, and the larger lag-1 correlation of an edge's kept residuals
+    ordered along it (:func:`lag1_correlation`). Image noise leaves out next to none
+    and correlates little; an edge that steps (a bar lying against part of it) leaves
+    out the part that steps, or, kept, gives residuals in one run."""
+    out, rho = 0.0, -1.0
+    start = 0
+    for edge in range(2):
+        pts = hub_a if edge == 0 else hub_b
+        n = pts.shape[0]
+        # the kept residuals ordered along the edge (a stable insertion sort: the
+        # points come nearly in order)
+        u, r = np.empty(n), np.empty(n)
+        m = 0
+        for i in range(n):
+            if not keep[start + i]:
+                continue
+            ui = pts[i, 0]
+            ri = pts[i, 1] - turn * (ui + clamp_from_pivot) - offsets[edge]
+            j = m
+            while j > 0 and u[j - 1] > ui:
+                u[j], r[j] = u[j - 1], r[j - 1]
+                j -= 1
+            u[j], r[j] = ui, ri
+            m += 1
+        start += n
+        out = max(out, 1.0 - m / max(n, 1))
+        if m < 4:
+            rho = max(rho, 0.0)
+            continue
+        den, num = 0.0, 0.0
+        for i in range(m):
+            den += r[i] * r[i]
+            if i:
+                num += r[i] * r[i - 1]
+        rho = max(rho, num / den if den > 0 else 0.0)
+    return out, rho
 
 
 #: Empties for :func:`_fit_joint`: no points, no values, no rows (writable, as every

@@ -26,7 +26,14 @@ class FrameMeasurement:
     centreline_plane_m, centreline_px : (K, 2) centre line, plane (m) and raw image (px).
     hub_line_px : (2, 2) two raw-image points on the hub axis (back end, clamp).
     clamp_plane_m, tip_plane_m : (2,) where the free beam begins / the tip's end centre.
-    hub_width_m, beam_width_m : widths measured in the frame.
+    hub_width_m, beam_width_m : widths measured in the frame (``hub_width_m`` from the
+        hub's two long edges as straight lines: NaN where they are not, e.g. a bar lying
+        against one of them, or where the hub shows none clear of its end faces).
+    hub_width_std_m : the standard uncertainty of ``hub_width_m`` (noise only, from
+        the fit's covariance).
+    hub_width_located_m : the hub's width the measurement worked with: ``hub_width_m``
+        where measured, else the hub locator's rough one (a search width: where to look
+        in the next frame, not a measurement).
     edge_rms_m : RMS residual of the beam edge fits.
     hub_angle_std_rad, tip_lateral_std_m : standard uncertainties predicted from the edge
         fits' residuals (noise only; the calibration's error, common to all frames, is
@@ -57,6 +64,8 @@ class FrameMeasurement:
     hub_angle_std_rad: float = math.nan
     tip_lateral_std_m: float = math.nan
     method: str = "default"
+    hub_width_std_m: float = math.nan
+    hub_width_located_m: float = math.nan
 
     def to_dict(self) -> dict[str, object]:
         """The JSON-able summary (what ``beambench measure --json`` prints)."""

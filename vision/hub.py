@@ -92,10 +92,61 @@ def hub_axis(
         raise FrameFailure("hub edges not straight")
     e = np.array([c, s])
     n = np.array([-s, c])
-    dof = max(len(along_a) + len(along_b) - 3, 1)
-    infl = max(correlation_inflation(along_a), correlation_inflation(along_b))
+    ra, rb = along_a[1], along_b[1]
+    dof = max(len(ra) + len(rb) - 3, 1)
+    infl = max(correlation_inflation(ra), correlation_inflation(rb))
     sd = math.sqrt(res_ss / dof / max(spread, 1e-18) * infl)
+    # Two checks on the direction from the points it kept. (1) Its last robust pass
+    # dropped points after the direction was fitted: the kept points' own common
+    # slope across it, ``turn``, is what one more fit would turn it by (0 where that
+    # pass dropped none). A bar lying against part of an edge tilts the first fits
+    # toward its step and then is dropped: the turn is that tilt. (2) The edges of one
+    # bar are parallel: each edge's own direction agrees with the other's within their
+    # noise unless one is no straight line (a step kept in the fit); Birge's ratio of
+    # their disagreement to its noise, where above 1, scales the sd.
+    chi2, turn = _axis_checks(along_a, along_b)
+    sd = math.hypot(sd * max(1.0, math.sqrt(chi2)), turn)
     return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
+
+
+@kernel
+def _axis_checks(along_a: NDArray[np.float64], along_b: NDArray[np.float64]) -> tuple[float, float]:
+    """:func:`hub_axis`'s checks on its direction from each edge's positions along it
+    and residuals across it (:func:`_along`): the chi-squared of the two edges' own
+    directions' difference (their slopes of residual on position; each one's variance
+    from its scatter about its own line, inflated for lag-1 correlation as
+    :func:`vision.centreline.correlation_inflation`), and the kept points' common
+    slope (the turn one more fit would make)."""
+    tilt, var = np.zeros(2), np.zeros(2)
+    s_ur, s_uu = 0.0, 0.0
+    for k in range(2):
+        al = along_a if k == 0 else along_b
+        u, r = al[0], al[1]
+        n = u.shape[0]
+        suu, sur = 0.0, 0.0
+        for i in range(n):
+            suu += u[i] * u[i]
+            sur += u[i] * r[i]
+        suu = max(suu, 1e-18)
+        t = sur / suu
+        ss, lag = 0.0, 0.0
+        prev = 0.0
+        for i in range(n):
+            q = r[i] - t * u[i]
+            ss += q * q
+            if i:
+                lag += q * prev
+            prev = q
+        infl = 1.0
+        if n >= 4 and ss > 0:
+            rho = min(max(lag / ss, 0.0), 0.9)
+            infl = (1.0 + rho) / (1.0 - rho)
+        tilt[k] = t
+        var[k] = ss / max(n - 2, 1) / suu * infl
+        s_ur += sur
+        s_uu += suu
+    chi2 = (tilt[0] - tilt[1]) ** 2 / max(var[0] + var[1], 1e-300)
+    return chi2, s_ur / s_uu
 
 
 @kernel
@@ -112,10 +163,11 @@ def _hub_axis(
     """:func:`hub_axis` up to the residuals' correlation: a status (0, or 1: too few
     points clear of the ends, 2: too few kept), the direction (c, s), the two edges'
     offsets along the normal, the residuals' sum of squares, the points' spread along
-    the direction, and each edge's residuals about its mean ordered along it."""
+    the direction, and each edge's positions along it and residuals across it about
+    its mean, ordered along it (:func:`_along`)."""
     xa, ya = _clear(pa, back_x, back_y, length, ex, ey, margin)
     xb, yb = _clear(pb, back_x, back_y, length, ex, ey, margin)
-    empty = np.empty(0)
+    empty = np.empty((2, 0))
     if xa.size < 5 or xb.size < 5:
         return 1, ex, ey, 0.0, 0.0, 0.0, 0.0, empty, empty
     # Two robust passes: the common direction of both edges (the major axis of their
@@ -211,8 +263,9 @@ def _mean(x: NDArray[np.float64]) -> float:
 
 @kernel
 def _along(x: NDArray[np.float64], y: NDArray[np.float64], c: float, s: float) -> NDArray:
-    """Residuals across a straight edge (points x, y; direction c, s) about its mean,
-    ordered along it (a stable insertion sort: the points come nearly in order)."""
+    """Positions along a straight edge (points x, y; direction c, s) and residuals across
+    it, both about its mean, ordered along it (a stable insertion sort: the points come
+    nearly in order): (2, N)."""
     mx, my = _mean(x), _mean(y)
     n = x.size
     u, r = np.empty(n), np.empty(n)
@@ -224,7 +277,9 @@ def _along(x: NDArray[np.float64], y: NDArray[np.float64], c: float, s: float) -
             u[j], r[j] = u[j - 1], r[j - 1]
             j -= 1
         u[j], r[j] = ui, ri
-    return r
+    out = np.empty((2, n))
+    out[0], out[1] = u, r
+    return out
 
 
 def clamp_face(

@@ -69,6 +69,14 @@ _SMALL_TURN_RAD = 1e-4
 #: none (at most 0.1 % on every rendered bench set); a damaged JPEG's shifted blocks 16-20 %.
 _MAX_OUTLIER_FRACTION = 0.1
 
+#: The hub's width is not reported where the joint fit left out more than this fraction
+#: of either hub edge's points: a straight edge's noise puts 3e-6 of them beyond the
+#: biweight's reach, its ends a few more (up to 6.7 % on the other renderer's plain
+#: frames: the scan lines nearest the clamp face); a bar lying against part of an edge
+#: puts that part there (4-49 % on such frames where it left any out; the beam's limit,
+#: as for its edges, leaves those below it, 3 in 70, reporting the bar's edge).
+_MAX_HUB_OUTLIER_FRACTION = _MAX_OUTLIER_FRACTION
+
 #: Frames whose beam edges spread within ``max_blur_px`` overall but beyond this many
 #: times it on a tenth of the beam (the 90th percentile: near the tip, which a swinging
 #: beam smears most) are refused with the smear in the reason: the edges' erf model
@@ -127,7 +135,8 @@ class Measurer:
     max_edge_correlation : frames whose beam-edge residuals correlate beyond it from one
         scan line to the next are refused: the edges then run away from any smooth beam
         shape (a damaged JPEG's shifted blocks measured 0.89-0.91 and came out ``ok`` with
-        11-14 mm of tip error; the rendered bench sets stay below 0.54).
+        11-14 mm of tip error; the rendered bench sets stay below 0.54). The hub's
+        edges' residuals correlating beyond it leave its width unmeasured (NaN).
     """
 
     def __init__(
@@ -311,8 +320,18 @@ class Measurer:
                 d_clamp = float(clamp @ e)
         n = np.array([-e[1], e[0]])
         clamp = d_clamp * e
+        # The width the frame measured: the joint fit's, from the hub's two long edges
+        # as straight lines. Where they are none (a bar lying against part of one: the
+        # fit then took the root alone, or left the stepped part out, or kept it in one
+        # run of residuals) the frame did not measure it: NaN. The width the steps
+        # worked with is kept apart (where to look, not a measurement: the rough
+        # locator's reads 44 mm on a 40 mm hub).
+        hub_w_measured, hub_w_sd = math.nan, math.nan
         if math.isfinite(joint.hub_width):
             hub_w = joint.hub_width
+            hub_out, hub_rho = joint.hub_straightness()
+            if hub_out <= _MAX_HUB_OUTLIER_FRACTION and hub_rho <= self.max_edge_correlation:
+                hub_w_measured, hub_w_sd = hub_w, joint.hub_width_sd
         fit = joint.fit
         if e_hub is not None:
             gap = math.asin(max(-1.0, min(1.0, float(e_hub[0] * e[1] - e_hub[1] * e[0]))))
@@ -392,7 +411,9 @@ class Measurer:
             hub_line_px=hub_px,
             clamp_plane_m=clamp,
             tip_plane_m=line_m[-1].copy(),
-            hub_width_m=hub_w,
+            hub_width_m=hub_w_measured,
+            hub_width_std_m=hub_w_sd,
+            hub_width_located_m=hub_w,
             hub_angle_std_rad=sd_hub,
             tip_lateral_std_m=sd_tip,
             beam_width_m=width,

@@ -259,9 +259,10 @@ class RegionReader:
             return
         self.smear_m = self._smear_reach_m() if self._smeared(m) else 0.0
         back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]
-        ok = np.all(np.isfinite(back)) and math.isfinite(m.hub_width_m)
+        hub_w = _search_hub_width(m)
+        ok = np.all(np.isfinite(back)) and math.isfinite(hub_w)
         self.hub_back_m = float(np.hypot(*back)) if ok else None
-        self.hub_w_m = float(m.hub_width_m) if ok else math.nan
+        self.hub_w_m = float(hub_w) if ok else math.nan
 
     # -- regions ----------------------------------------------------------------------
     def _ring_segments(self, layout: JpegLayout) -> NDArray[np.intp]:
@@ -366,7 +367,8 @@ class RegionReader:
         back, clamp = cal.to_plane(m.hub_line_px)
         tip = m.tip_plane_m
         line = m.centreline_plane_m
-        hub_w = m.hub_width_m if math.isfinite(m.hub_width_m) else 3 * wb
+        hub_w = _search_hub_width(m)
+        hub_w = hub_w if math.isfinite(hub_w) else 3 * wb
         half = follow_half_width(w) + 2 * px_m
         half_in = follow_half_width(wb) + 2 * px_m
         out_end = float((tip - p2) @ d0) + 2 * max(_STEP_OUT_WIDTHS * w, 4 * px_m) + 4 * wb
@@ -590,6 +592,14 @@ def _tube_pixels(
             widest = side if j == first[i] else max(widest, side)
         thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
     return blk, thick
+
+
+def _search_hub_width(m: FrameMeasurement) -> float:
+    """The hub's width to search the next frame with (m): the one the measurement worked
+    with (on a frame whose hub edges were no straight lines, the rough locator's: the
+    measured width is then NaN), else the reported one (a method that keeps none)."""
+    w = m.hub_width_located_m
+    return w if math.isfinite(w) else m.hub_width_m
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:

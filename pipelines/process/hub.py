@@ -25,18 +25,24 @@ def measured_hub(
 ) -> dict[str, float]:
     """Medians over the measured frames of the hub's length (back face to clamp face),
     width and pivot-to-clamp offset (m), with the offset's standard uncertainty (robust
-    spread over the frames / sqrt(n)); empty when no frame was measured."""
+    spread over the frames / sqrt(n)); empty when no frame was measured. The width is
+    the median over the frames that measured it (a frame whose hub edges are no
+    straight lines, e.g. a bar lying against one, does not: NaN), their count
+    ``hub_width_measured_frames`` of ``hub_measured_frames`` (the width NaN for none)."""
     ok = [m for m in measurements if m.ok and np.all(np.isfinite(m.hub_line_px))]
     if not ok:
         return {}
     ends = calibration.to_plane(np.vstack([m.hub_line_px for m in ok])).reshape(-1, 2, 2)
     length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
-    width = np.array([m.hub_width_m for m in ok])
+    width = np.array([m.hub_width_m for m in ok], dtype=np.float64)
+    width = width[np.isfinite(width)]
     offset = np.array([float(np.hypot(*m.clamp_plane_m)) for m in ok])
     mad = float(np.median(np.abs(offset - np.median(offset))))
     return {
         "hub_length_measured_m": float(np.nanmedian(length)),
-        "hub_width_measured_m": float(np.nanmedian(width)),
+        "hub_width_measured_m": float(np.median(width)) if len(width) else math.nan,
+        "hub_width_measured_frames": len(width),
+        "hub_measured_frames": len(ok),
         "hub_offset_measured_m": float(np.median(offset)),
         "hub_offset_measured_sd_m": 1.4826 * mad / math.sqrt(len(ok)),
     }
@@ -56,9 +62,17 @@ def hub_line(attrs: dict[str, Any], rig_hub_offset_m: float) -> str | None:
     file's attributes (:func:`hub_attrs`)."""
     if "hub_length_measured_m" not in attrs:
         return None
+    length_mm = float(attrs["hub_length_measured_m"]) * 1e3
+    width_mm = float(attrs["hub_width_measured_m"]) * 1e3
+    n_w, n = attrs.get("hub_width_measured_frames"), attrs.get("hub_measured_frames")
+    if not math.isfinite(width_mm):
+        size = f"{length_mm:.1f} mm long (its width on none of {n} frames)"
+    elif n_w is not None and n is not None and int(n_w) < int(n):
+        size = f"{length_mm:.1f} x {width_mm:.1f} mm (the width on {n_w} of {n} frames)"
+    else:
+        size = f"{length_mm:.1f} x {width_mm:.1f} mm"
     return (
-        f"hub measured {float(attrs['hub_length_measured_m']) * 1e3:.1f} x "
-        f"{float(attrs['hub_width_measured_m']) * 1e3:.1f} mm, clamp "
+        f"hub measured {size}, clamp "
         f"{float(attrs['hub_offset_measured_m']) * 1e3:.2f} mm from the pivot (rig: hints "
         f"{float(attrs['hub_length_hint_m']) * 1e3:.0f} x "
         f"{float(attrs['hub_width_hint_m']) * 1e3:.0f} mm, hub_offset_m "

@@ -74,6 +74,22 @@ def hub_axis_numpy(
     dof = max(len(res) - 3, 1)
     infl = max(correlation_inflation(_along(pa, e, n)), correlation_inflation(_along(pb, e, n)))
     sd = math.sqrt(float((res * res).sum()) / dof / max(spread, 1e-18) * infl)
+    # the kept points' own common slope (what one more fit would turn it by) and
+    # Birge's ratio of the two edges' own directions' disagreement to its noise
+    tilt, var = [], []
+    for u, r in ((ua, ra), (ub, rb)):
+        t = float(u @ r) / max(float(u @ u), 1e-18)
+        rest = (r - t * u)[np.argsort(u, kind="stable")]
+        tilt.append(t)
+        var.append(
+            float(rest @ rest)
+            / max(len(r) - 2, 1)
+            / max(float(u @ u), 1e-18)
+            * correlation_inflation(rest)
+        )
+    chi2 = (tilt[0] - tilt[1]) ** 2 / max(var[0] + var[1], 1e-300)
+    turn = float(ua @ ra + ub @ rb) / max(float(ua @ ua + ub @ ub), 1e-18)
+    sd = math.hypot(sd * max(1.0, math.sqrt(chi2)), turn)
     return e, n, 0.5 * (ba + bb), abs(ba - bb), sd
 
 

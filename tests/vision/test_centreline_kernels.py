@@ -733,3 +733,33 @@ def test_arc_kernels_are_the_numpy_forms_exactly() -> None:
             np.testing.assert_array_equal(got.a, a)
             np.testing.assert_array_equal(got.s, s)
             np.testing.assert_array_equal(got.corr, corr)
+
+
+def test_hub_straightness_kernel_against_the_numpy_form() -> None:
+    """The hub edges' straightness (:func:`vision.centreline._hub_straightness`): each
+    edge's fraction of points left out and its kept residuals' lag-1 correlation along
+    it, against numpy's sort and dot products; an edge stepping out over a third of it
+    correlates near 1, noise alone near 0."""
+    rng = np.random.default_rng(41)
+    for k in range(40):
+        na, nb = int(rng.integers(2, 120)), int(rng.integers(2, 120))
+        turn, c, offs = rng.normal(0, 1e-3), rng.uniform(0, 0.01), np.array([0.02, -0.02])
+        pts, rs = [], []
+        for n, h in ((na, offs[0]), (nb, offs[1])):
+            a = rng.permutation(-np.linspace(0.01, 0.2, n)) if k % 2 else -np.linspace(0.01, 0.2, n)
+            r = rng.normal(0, 2e-5, n) + (np.where(a < -0.13, 4e-3, 0.0) if k % 3 == 0 else 0.0)
+            pts.append(np.column_stack([a, h + turn * (a + c) + r]))
+            rs.append(r)
+        keep = rng.uniform(size=na + nb) > (0.2 if k % 4 == 0 else 0.0)
+        out, rho = cl._hub_straightness(pts[0], pts[1], keep, turn, c, offs)
+        want_out, want_rho, start = 0.0, -1.0, 0
+        for p, r in zip(pts, rs, strict=True):
+            kk = keep[start : start + len(p)]
+            start += len(p)
+            want_out = max(want_out, 1.0 - np.count_nonzero(kk) / len(p))
+            rk = r[kk][np.argsort(p[kk, 0], kind="stable")]
+            want_rho = max(want_rho, cl.lag1_correlation(rk))
+        assert out == pytest.approx(want_out, abs=1e-15), k
+        assert rho == pytest.approx(want_rho, rel=1e-9, abs=1e-12), k
+        if k % 3 == 0 and min(na, nb) > 40 and k % 4:
+            assert rho > 0.9, (k, rho)

@@ -116,3 +116,37 @@ def test_the_rough_axis_is_the_svds() -> None:
         want, got = rough_axis_numpy(rough), rough_axis(rough)
         for g, w in zip(got, want, strict=True):
             np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-14, err_msg=str(k))
+
+
+def test_the_hub_axis_sd_covers_the_tilt_of_an_edge_that_steps() -> None:
+    """Two parallel edges, one with a bar lying against part of it (its points step out
+    3-13 mm over 10-45 % of the edge): the fits before the last robust pass tilt toward
+    the step, and the step's points are then dropped or kept in one run. The sd from
+    the residuals' scatter put the tilt beyond 3 of it on 1 in 5 such edges, up to 10;
+    with the kept points' own turn and the two edges' disagreement (Birge's ratio),
+    every tilt is within 3 (0 of 592 beyond 3, the largest 2.98, the median 0.85; on
+    frames of both renderers with such bars, 8 of 29 were beyond 3 and 0 of 30 are, the
+    largest 1.04; the plain bench sets' unchanged)."""
+    rng = np.random.default_rng(12)
+    z = []
+    for _ in range(60):
+        th = rng.uniform(-np.pi, np.pi)
+        e = np.array([math.cos(th), math.sin(th)])
+        nn = np.array([-e[1], e[0]])
+        px = 4.5e-4
+        length, width = rng.uniform(0.1, 0.25), rng.uniform(0.03, 0.06)
+        a = np.arange(0.0, length, 1.3 * px)
+        noise = rng.uniform(0.03, 0.3) * px
+        frac = rng.uniform(0.1, 0.45)
+        start = rng.uniform(0.0, 1.0 - frac) * length
+        step = np.where((a > start) & (a < start + frac * length), rng.uniform(0.003, 0.013), 0.0)
+        side = 1.0 if rng.uniform() < 0.5 else -1.0
+        back = rng.normal(0, 0.05, 2)
+        edges = []
+        for s in (1.0, -1.0):
+            b = s * (0.5 * width + (step if s == side else 0.0)) + rng.normal(0, noise, a.size)
+            edges.append(back + a[:, None] * e + b[:, None] * nn)
+        got, _, _, _, sd = hub_axis(*edges, back, back + length * e, e + 0.02 * nn, 10 * px)
+        tilt = math.asin(float(got[0] * e[1] - got[1] * e[0]))
+        z.append(abs(tilt) / sd)
+    assert max(z) <= 3.0, np.sort(z)[-5:]

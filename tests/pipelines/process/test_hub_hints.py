@@ -68,3 +68,25 @@ def test_a_clamp_elsewhere_than_the_rigs_offset_is_a_warning(calibration: Calibr
     assert "--rig" in note
     moved = dataclasses.replace(rig, beam=dataclasses.replace(rig.beam, hub_offset_m=0.012))
     assert offset_warning(hub, moved) is None
+
+
+def test_frames_that_did_not_measure_the_hubs_width_are_left_out_of_it_and_counted(
+    calibration: Calibration,
+) -> None:
+    """A frame whose hub edges are no straight lines (a bar lying against one) reports
+    the width NaN: the run's width is the median of the others, the line says how many,
+    and none measuring it gives NaN, not a warning (pytest runs warnings as errors)."""
+    frames = [_frame(calibration, np.radians(a), 0.0081, 0.068) for a in (250, 280, 310)]
+    frames[1] = dataclasses.replace(frames[1], hub_width_m=float("nan"))
+    frames[2] = dataclasses.replace(frames[2], hub_width_m=0.052)
+    hub = measured_hub(frames, calibration)
+    assert hub["hub_width_measured_m"] == pytest.approx(0.0515, abs=1e-12)
+    assert (hub["hub_width_measured_frames"], hub["hub_measured_frames"]) == (2, 3)
+    rig = load_rig()
+    line = hub_line(hub_attrs(hub, rig), rig.beam.hub_offset_m)
+    assert line is not None and "68.0 x 51.5 mm (the width on 2 of 3 frames)" in line
+    none = [dataclasses.replace(f, hub_width_m=float("nan")) for f in frames]
+    hub = measured_hub(none, calibration)
+    assert np.isnan(hub["hub_width_measured_m"]) and hub["hub_width_measured_frames"] == 0
+    line = hub_line(hub_attrs(hub, rig), rig.beam.hub_offset_m)
+    assert line is not None and "68.0 mm long (its width on none of 3 frames)" in line
