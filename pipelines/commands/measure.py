@@ -7,10 +7,13 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from pipelines.commands._args import add_max_tip_uncertainty_argument, max_tip_uncertainty_m
 from pipelines.errors import BeambenchError
+
+if TYPE_CHECKING:
+    from vision import FrameMeasurement
 
 HELP = "measure hub angle and tip deflection in still images"
 
@@ -107,16 +110,25 @@ def _calibration_included(
     return out, total[2]
 
 
-def _seen(m: dict[str, Any], width_m: float, blur_px: float) -> dict[str, Any]:
+def _seen(m: dict[str, Any], measured: FrameMeasurement) -> dict[str, Any]:
     """``m`` with what the frame showed beside the measurement: ``beam_width_m``, the
-    beam's width measured from its edges, and ``blur_px``, the median ramp width of its
+    beam's width measured from its edges; ``blur_px``, the median ramp width of its
     edges (motion blur and smear widen it; a frame beyond the measurer's ``max_blur_px``
-    is measured from the centroids of the beam's light). None where not measured."""
+    is measured from the centroids of the beam's light); ``hub_width_m`` and its
+    ``hub_width_sd_m``, from the hub's two long edges as straight lines (None where they
+    are not: a bar lying against one, a short block showing none clear of its ends).
+    None where not measured."""
 
     def num(x: float) -> float | None:
         return float(x) if math.isfinite(x) else None
 
-    return {**m, "beam_width_m": num(width_m), "blur_px": num(blur_px)}
+    return {
+        **m,
+        "beam_width_m": num(measured.beam_width_m),
+        "blur_px": num(measured.blur_px),
+        "hub_width_m": num(measured.hub_width_m),
+        "hub_width_sd_m": num(measured.hub_width_std_m),
+    }
 
 
 #: Said on a terminal before the first image when vision's kernels are not compiled yet.
@@ -161,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
     for path, image in images:
         measured = measurer.measure(image)
         m = _with_sds(*_calibration_included(measured.to_dict(), *stated_sds(measured, cal)))
-        m = _seen(m, measured.beam_width_m, measured.blur_px)
+        m = _seen(m, measured)
         if args.json:
             print(json.dumps({"image": path, **m}))
         else:

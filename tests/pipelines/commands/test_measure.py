@@ -111,6 +111,21 @@ def test_json_carries_the_beam_width_and_the_blur_it_saw(files, capsys) -> None:
     assert black["beam_width_m"] is None and black["blur_px"] is None
 
 
+def test_json_carries_the_hub_width_with_its_uncertainty(files, capsys) -> None:
+    """The hub's width from its two long edges, with its standard uncertainty: the drawn
+    width within 3 sd (the sd a few micrometres to a tenth of a millimetre: a 2 DN frame's
+    edges, not zero or the rough locator's millimetres); None on a frame with no beam."""
+    from vision.synthetic.scene import SceneSpec
+
+    drawn_m = SceneSpec.hub_width_m  # the renderer's default hub, 40 mm
+    argv = ["measure", str(files["frame.jpg"]), str(files["black.png"])]
+    assert main([*argv, "--calibration", str(files["cal.json"]), "--json"]) == 0
+    good, black = (json.loads(x) for x in capsys.readouterr().out.splitlines())
+    assert 1e-6 < good["hub_width_sd_m"] < 1e-4
+    assert abs(good["hub_width_m"] - drawn_m) < 3 * good["hub_width_sd_m"]
+    assert black["hub_width_m"] is None and black["hub_width_sd_m"] is None
+
+
 def test_text_output(files, capsys) -> None:
     assert main(["measure", str(files["frame.jpg"]), "--calibration", str(files["cal.json"])]) == 0
     out = capsys.readouterr().out
