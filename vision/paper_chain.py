@@ -150,6 +150,9 @@ def measure_paper(
         hub_line_px=cal.to_px(np.vstack([rough.hub_back, clamp])),
         clamp_plane_m=clamp,
         tip_plane_m=clamp + a_tip * e + b_tip * nrm,
-        hub_width_m=rough.hub_width,
+        # the chain reads the hub's centre line only: its width is the locator's rough
+        # one, where to look, not a measurement (as the default method's on a hub whose
+        # edges are no straight lines)
+        hub_width_located_m=rough.hub_width,
         method="paper",
     )
