@@ -66,7 +66,16 @@ def _text(path: str, m: dict[str, Any]) -> str:
         f"{path}: hub angle {hub:.4f} deg{sd('hub_angle_sd_rad', math.degrees(1.0), 'deg')}, "
         f"tip lateral {mm(m['tip_lateral_m'])}{sd('tip_lateral_sd_m', 1e3, 'mm')}, "
         f"tip longitudinal {mm(m['tip_longitudinal_m'])}{sd('tip_longitudinal_sd_m', 1e3, 'mm')}"
-        f"; lateral at {stations}"
+        f"; lateral at {stations}{_hub_width_text(m)}"
+    )
+
+
+def _hub_width_text(m: dict[str, Any]) -> str:
+    w, sd = m.get("hub_width_m"), m.get("hub_width_sd_m")
+    if w is None:
+        return "; hub width not measured (its long edges are not both straight lines)"
+    return f"; hub width {float(w) * 1e3:.2f} mm" + (
+        "" if sd is None else f" (sd {float(sd) * 1e3:.3f} mm)"
     )
 
 

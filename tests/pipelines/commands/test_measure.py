@@ -131,6 +131,9 @@ def test_text_output(files, capsys) -> None:
     out = capsys.readouterr().out
     hub = float(out.split("hub angle ")[1].split(" deg")[0])
     assert hub == pytest.approx(290.0, abs=0.02) and "tip lateral +25." in out
+    width = float(out.split("hub width ")[1].split(" mm")[0])
+    assert width == pytest.approx(40.0, abs=0.05)
+    assert out.split("hub width ")[1].startswith(f"{width:.2f} mm (sd 0.00")  # micrometres
 
 
 @pytest.mark.parametrize(
