@@ -844,7 +844,7 @@ def _offsets_k(
     : sizes[k + 1]]``, each at least 2 points) and after them each point moved by its
     strip's half width along the line's unit normal (``(-t_y, t_x)``, ``t`` the unit
     step gradient: central differences, one-sided at the ends, as
-    :func:`vision.sampling.unit_step_gradient`)."""
+    ``np.gradient(lines, axis=0)``)."""
     n = lines.shape[0]
     out = np.empty((2 * n, 2))
     for k in range(sizes.shape[0] - 1):

@@ -144,16 +144,6 @@ def _block_sum(a: NDArray[np.float64], lo: int, n: int) -> float:
     return res
 
 
-def unit_step_gradient(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``np.gradient(x, axis=0)`` for samples one apart (``len(x) >= 2``): central
-    differences, one-sided at the ends, without its generic overhead (called on short
-    arrays in every frame)."""
-    g = np.empty_like(x)
-    g[1:-1] = (x[2:] - x[:-2]) / 2.0
-    g[0], g[-1] = x[1] - x[0], x[-1] - x[-2]
-    return g
-
-
 def bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
     """Bilinear samples of a [row, col] image at points (N, 2) (x, y); NaN off the image."""
     xy = np.asarray(xy, dtype=np.float64)

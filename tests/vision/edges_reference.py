@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.sampling import median, unit_step_gradient
+from vision.sampling import median
 
 EXP32: Any = np.exp
 _INT16_MIN = np.int16(np.iinfo(np.int16).min)
@@ -181,7 +181,7 @@ def _scan_lines(
         return None
     yc = np.interp(lines, x, y)
     # d yc / d line (lines one apart; two lines: taken as level)
-    slope = unit_step_gradient(yc) if lines.size > 2 else np.zeros_like(yc)
+    slope = np.gradient(yc) if lines.size > 2 else np.zeros_like(yc)
     half = np.interp(lines, x, hw) * np.sqrt(1.0 + slope**2)
     reach = int(np.ceil(np.max(half))) + margin_px + max_window
     top = np.round(yc).astype(np.intp) - reach

@@ -17,7 +17,7 @@ from vision.edges import (
     strip_edges,
     strip_edges_many,
 )
-from vision.sampling import bilinear, median, unit_step_gradient
+from vision.sampling import bilinear, median
 
 
 def _strip_image(
@@ -145,13 +145,6 @@ def test_median_is_numpys() -> None:
         np.testing.assert_array_equal(kept, x)
         np.testing.assert_array_equal(np.sort(work), np.sort(x))
         assert not np.array_equal(work, x)  # partitioned in place
-
-
-def test_unit_step_gradient_is_numpys() -> None:
-    rng = np.random.default_rng(1)
-    for shape in ((2,), (3,), (17,), (2, 2), (9, 2)):
-        x = rng.normal(size=shape)
-        np.testing.assert_array_equal(unit_step_gradient(x), np.gradient(x, axis=0))
 
 
 def test_bilinear_interpolates_and_is_nan_off_the_image() -> None:

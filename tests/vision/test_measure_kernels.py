@@ -69,10 +69,9 @@ def test_linspace_is_numpys_exactly() -> None:
 
 def test_the_strip_offsets_are_the_numpy_forms() -> None:
     """``_offsets_k`` (the strips' lines and their points a half width across) against
-    the numpy form it replaced (``unit_step_gradient``, normalised by ``np.hypot``, the
+    the numpy form it replaced (``np.gradient`` along the line, normalised by ``np.hypot``, the
     normal ``(-t_y, t_x)`` times the half width): equal exactly."""
     from vision.measure import _offsets_k
-    from vision.sampling import unit_step_gradient
 
     rng = np.random.default_rng(45)
     strips = []
@@ -81,7 +80,7 @@ def test_the_strip_offsets_are_the_numpy_forms() -> None:
         strips.append((np.column_stack([t, 0.1 * t**2 + 0.01 * rng.random()]), 0.01 * k))
     lines, offsets = [], []
     for line_m, half_m in strips:
-        t = unit_step_gradient(line_m)
+        t = np.gradient(line_m, axis=0)
         t /= np.hypot(t[:, 0], t[:, 1])[:, None]
         lines.append(line_m)
         offsets.append(line_m + half_m * np.column_stack([-t[:, 1], t[:, 0]]))

@@ -20,7 +20,6 @@ from vision.regions import (
     _tube_pixels,
     _tube_points,
 )
-from vision.sampling import unit_step_gradient
 from vision.synthetic.render import render_frame
 
 
@@ -49,7 +48,7 @@ def _dense_line_numpy(line: np.ndarray, half_m: float) -> tuple[np.ndarray, np.n
         return None
     sq = np.linspace(0.0, s[-1], max(2, int(s[-1] / (0.5 * half_m)) + 2))
     pts = np.column_stack([np.interp(sq, s, line[:, 0]), np.interp(sq, s, line[:, 1])])
-    t = unit_step_gradient(pts)
+    t = np.gradient(pts, axis=0)
     t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
     return pts, t
 
