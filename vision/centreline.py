@@ -336,6 +336,19 @@ def lag1_correlation(res: NDArray[np.float64]) -> float:
     return float(res[1:] @ res[:-1]) / den if den > 0 else 0.0
 
 
+@kernel
+def lag1_sums(res: NDArray[np.float64], n: int) -> tuple[float, float]:
+    """The sums behind the lag-1 correlation of the first ``n`` residuals ``res``
+    (ordered along an edge), in order: ``(sum r_i^2, sum r_i r_(i-1))``; the compiled
+    kernels' form of :func:`lag1_correlation` (which numpy sums in another order)."""
+    den, num = 0.0, 0.0
+    for i in range(n):
+        den += res[i] * res[i]
+        if i:
+            num += res[i] * res[i - 1]
+    return den, num
+
+
 def correlation_inflation(res: NDArray[np.float64]) -> float:
     """Variance factor for the mean of residuals ``res`` (ordered along an edge) that are
     correlated from one scan line to the next (JPEG blocks, interpolated plateaus):
@@ -1494,11 +1507,7 @@ def _hub_straightness(
         if m < 4:
             rho = max(rho, 0.0)
             continue
-        den, num = 0.0, 0.0
-        for i in range(m):
-            den += r[i] * r[i]
-            if i:
-                num += r[i] * r[i - 1]
+        den, num = lag1_sums(r, m)
         rho = max(rho, num / den if den > 0 else 0.0)
     return out, rho
 

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.centreline import correlation_inflation, linspace
+from vision.centreline import correlation_inflation, lag1_sums, linspace
 from vision.errors import FrameFailure
 from vision.jit import kernel
 from vision.locate import Rough, ToPx, _grid
@@ -129,14 +129,7 @@ def _axis_checks(along_a: NDArray[np.float64], along_b: NDArray[np.float64]) -> 
             sur += u[i] * r[i]
         suu = max(suu, 1e-18)
         t = sur / suu
-        ss, lag = 0.0, 0.0
-        prev = 0.0
-        for i in range(n):
-            q = r[i] - t * u[i]
-            ss += q * q
-            if i:
-                lag += q * prev
-            prev = q
+        ss, lag = lag1_sums(r - t * u, n)
         infl = 1.0
         if n >= 4 and ss > 0:
             rho = min(max(lag / ss, 0.0), 0.9)
