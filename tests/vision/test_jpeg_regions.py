@@ -141,6 +141,19 @@ def test_other_decoders_read_our_jpegs() -> None:
     assert cv2.imdecode(np.frombuffer(with_rst, np.uint8), cv2.IMREAD_UNCHANGED).shape == (480, 640)
 
 
+def _assert_broken_markers_give_no_layout(data: bytes, segment: int) -> None:
+    """``data`` has a layout; with the restart marker after ``segment`` lost (its two
+    bytes cut out) or renumbered, or the file cut short, it has none."""
+    layout = jpeg_layout(data)
+    assert layout is not None
+    at = int(layout.ends[segment])
+    assert jpeg_layout(data[:at] + data[at + 2 :]) is None
+    swapped = bytearray(data)
+    swapped[at + 1] ^= 0x01
+    assert jpeg_layout(bytes(swapped)) is None
+    assert jpeg_layout(data[: len(data) // 2]) is None
+
+
 def test_jpegs_that_cannot_be_split_have_no_layout() -> None:
     img = _scene(240, 320, seed=5)
     assert jpeg_layout(encode(img, "jpeg", 90, restart_interval_mcu=0)) is None  # no DRI
@@ -165,15 +178,7 @@ def test_jpegs_that_cannot_be_split_have_no_layout() -> None:
     assert jpeg_layout(encode(img, "jpeg", 90, restart_interval_mcu=7)) is None
     data = encode(img, "jpeg", 90, restart_interval_mcu=8)
     assert jpeg_layout(data) is not None
-    # a restart marker lost (its two bytes cut out), renumbered, or the file cut short
-    layout = jpeg_layout(data)
-    assert layout is not None
-    at = int(layout.ends[10])
-    assert jpeg_layout(data[:at] + data[at + 2 :]) is None
-    swapped = bytearray(data)
-    swapped[at + 1] ^= 0x01
-    assert jpeg_layout(bytes(swapped)) is None
-    assert jpeg_layout(data[: len(data) // 2]) is None
+    _assert_broken_markers_give_no_layout(data, 10)
     assert jpeg_layout(b"") is None
     assert jpeg_layout(data[:300]) is None
 
@@ -472,15 +477,7 @@ def test_colour_jpegs_that_cannot_be_split_have_no_layout() -> None:
     one[sos + 7 : sos + 12] = b""
     one[sos + 7 : sos + 7] = b"\x00\x3f\x00"
     assert jpeg_layout(bytes(one)) is None
-    # a restart marker lost or renumbered, the file cut short
-    layout = jpeg_layout(data)
-    assert layout is not None
-    at = int(layout.ends[5])
-    assert jpeg_layout(data[:at] + data[at + 2 :]) is None
-    swapped = bytearray(data)
-    swapped[at + 1] ^= 0x01
-    assert jpeg_layout(bytes(swapped)) is None
-    assert jpeg_layout(data[: len(data) // 2]) is None
+    _assert_broken_markers_give_no_layout(data, 5)
 
 
 def test_colour_headers_damaged_give_no_layout_a_decode_error_or_the_whole_decode() -> None:

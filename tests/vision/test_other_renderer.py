@@ -32,6 +32,25 @@ CASES = {
 KNOWN: dict[str, str] = {}
 
 
+def _frame(seed: int, hub_m: tuple[float, float], bar, gradient: float = 0.15):  # type: ignore[no-untyped-def]
+    """A static frame by other hands: (measurement, truth state)."""
+    rng = np.random.default_rng(seed)
+    cam = random_camera(rng)
+    bench = Bench(cam, hub_length_m=hub_m[0], hub_width_m=hub_m[1], hub_bar=bar, gradient=gradient)
+    states, mid = exposure(rng, 0.0)
+    image = render(bench, states, rng)
+    cal = Calibration(cam.px(SQUARE_CORNERS_M), SQUARE_CORNERS_M, cam.K, cam.dist)
+    return Measurer(cal).measure(image), mid
+
+
+def _errors(m, mid) -> tuple[float, float]:  # type: ignore[no-untyped-def]
+    """A measurement's hub angle (rad, wrapped) and tip lateral (m) errors against the
+    truth state ``mid`` (the exposure's middle)."""
+    _, _, tip_lat, _ = mid.centre_line()
+    d_hub = (m.hub_angle_rad - mid.hub_angle_rad + math.pi) % (2 * math.pi) - math.pi
+    return d_hub, m.tip_lateral_m - tip_lat
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "case",
@@ -58,9 +77,7 @@ def test_frames_drawn_by_other_hands_are_measured_within_their_stated_uncertaint
             lines.append(f"{k}: refused: {m.reason}")
             continue
         measured += 1
-        _, _, tip_lat, _ = mid.centre_line()
-        d_hub = (m.hub_angle_rad - mid.hub_angle_rad + math.pi) % (2 * math.pi) - math.pi
-        d_tip = m.tip_lateral_m - tip_lat
+        d_hub, d_tip = _errors(m, mid)
         lines.append(
             f"{k}: hub {math.degrees(d_hub):+.4f} deg ({d_hub / m.hub_angle_std_rad:+.1f} sd), "
             f"tip {d_tip * 1e3:+.3f} mm ({d_tip / m.tip_lateral_std_m:+.1f} sd)"
@@ -84,34 +101,15 @@ def test_a_bar_against_a_clamp_blocks_edge_leaves_the_beams_root_alone() -> None
         (72, (0.029, 0.062, 0.007, -1)),
     ]
     for seed, bar in frames:
-        rng = np.random.default_rng(seed)
-        cam = random_camera(rng)
-        bench = Bench(cam, hub_length_m=0.068, hub_width_m=0.051, hub_bar=bar)
-        states, mid = exposure(rng, 0.0)
-        image = render(bench, states, rng)
-        cal = Calibration(cam.px(SQUARE_CORNERS_M), SQUARE_CORNERS_M, cam.K, cam.dist)
-        m = Measurer(cal).measure(image)
+        m, mid = _frame(seed, (0.068, 0.051), bar)
         assert m.ok, f"{seed}: {m.reason}"
-        _, _, tip_lat, _ = mid.centre_line()
-        d_hub = (m.hub_angle_rad - mid.hub_angle_rad + math.pi) % (2 * math.pi) - math.pi
-        d_tip = m.tip_lateral_m - tip_lat
+        d_hub, d_tip = _errors(m, mid)
         lines.append(
             f"{seed}: hub {d_hub / m.hub_angle_std_rad:+.1f} sd, "
             f"tip {d_tip / m.tip_lateral_std_m:+.1f} sd"
         )
         assert abs(d_hub) <= 3 * m.hub_angle_std_rad, "\n".join(lines)
         assert abs(d_tip) <= 3 * m.tip_lateral_std_m, "\n".join(lines)
-
-
-def _frame(seed: int, hub_m: tuple[float, float], bar, gradient: float = 0.15):  # type: ignore[no-untyped-def]
-    """A static frame by other hands: (measurement, truth state)."""
-    rng = np.random.default_rng(seed)
-    cam = random_camera(rng)
-    bench = Bench(cam, hub_length_m=hub_m[0], hub_width_m=hub_m[1], hub_bar=bar, gradient=gradient)
-    states, mid = exposure(rng, 0.0)
-    image = render(bench, states, rng)
-    cal = Calibration(cam.px(SQUARE_CORNERS_M), SQUARE_CORNERS_M, cam.K, cam.dist)
-    return Measurer(cal).measure(image), mid
 
 
 @pytest.mark.slow
@@ -134,7 +132,7 @@ def test_a_hub_width_the_frame_did_not_measure_is_not_reported_as_measured() -> 
         assert m.ok, f"{seed}: {m.reason}"
         assert math.isnan(m.hub_width_m) and math.isnan(m.hub_width_std_m), (seed, m.hub_width_m)
         assert m.hub_width_located_m > hub[1], (seed, m.hub_width_located_m)
-        d_hub = (m.hub_angle_rad - mid.hub_angle_rad + math.pi) % (2 * math.pi) - math.pi
+        d_hub, _ = _errors(m, mid)
         assert abs(d_hub) <= 3 * m.hub_angle_std_rad, (seed, d_hub, m.hub_angle_std_rad)
 
 
