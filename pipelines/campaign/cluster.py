@@ -120,7 +120,9 @@ def _quiet_workers(client: Any) -> None:
     """
     if logging.getLogger().isEnabledFor(logging.INFO) or client.status != "running":
         return
-    with contextlib.suppress(Exception):
+    # the function's own errors are ignored by Dask (on_error); a worker or scheduler
+    # that does not answer in time, or whose connection closes, is stopped regardless
+    with contextlib.suppress(OSError, TimeoutError):
         client.run(quiet_dask_logs, on_error="ignore", callback_timeout=CONNECT_TIMEOUT_S)
 
 
