@@ -67,6 +67,15 @@ class FrameMeasurement:
     hub_width_std_m: float = math.nan
     hub_width_located_m: float = math.nan
 
+    @property
+    def hub_search_width_m(self) -> float:
+        """The hub's width to look for it with (the next frame's regions, the recording's
+        previews): the one the measurement worked with (on a frame whose hub edges were no
+        straight lines, the rough locator's: the measured width is then NaN), else the
+        reported one (a measurement made without it)."""
+        w = self.hub_width_located_m
+        return w if math.isfinite(w) else self.hub_width_m
+
     def to_dict(self) -> dict[str, object]:
         """The JSON-able summary (what ``beambench measure --json`` prints)."""
 

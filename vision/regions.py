@@ -259,7 +259,7 @@ class RegionReader:
             return
         self.smear_m = self._smear_reach_m() if self._smeared(m) else 0.0
         back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]
-        hub_w = _search_hub_width(m)
+        hub_w = m.hub_search_width_m
         ok = np.all(np.isfinite(back)) and math.isfinite(hub_w)
         self.hub_back_m = float(np.hypot(*back)) if ok else None
         self.hub_w_m = float(hub_w) if ok else math.nan
@@ -367,7 +367,7 @@ class RegionReader:
         back, clamp = cal.to_plane(m.hub_line_px)
         tip = m.tip_plane_m
         line = m.centreline_plane_m
-        hub_w = _search_hub_width(m)
+        hub_w = m.hub_search_width_m
         hub_w = hub_w if math.isfinite(hub_w) else 3 * wb
         half = follow_half_width(w) + 2 * px_m
         half_in = follow_half_width(wb) + 2 * px_m
@@ -592,14 +592,6 @@ def _tube_pixels(
             widest = side if j == first[i] else max(widest, side)
         thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
     return blk, thick
-
-
-def _search_hub_width(m: FrameMeasurement) -> float:
-    """The hub's width to search the next frame with (m): the one the measurement worked
-    with (on a frame whose hub edges were no straight lines, the rough locator's: the
-    measured width is then NaN), else the reported one (a method that keeps none)."""
-    w = m.hub_width_located_m
-    return w if math.isfinite(w) else m.hub_width_m
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:

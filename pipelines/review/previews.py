@@ -178,8 +178,7 @@ def region_blocks(m: FrameMeasurement, shape: tuple[int, int]) -> NDArray[np.boo
     if not (len_m > 0 and math.isfinite(len_px / len_m)):
         return None
     px_m = len_px / len_m
-    hub_w = m.hub_width_located_m if math.isfinite(m.hub_width_located_m) else m.hub_width_m
-    widths = {"hub": hub_w, "beam": m.beam_width_m}
+    widths = {"hub": m.hub_search_width_m, "beam": m.beam_width_m}
     mask = np.zeros(shape, np.uint8)
     for name, pts in (("hub", hub), ("beam", line)):
         w = widths[name]
