@@ -40,6 +40,8 @@ KEEP_CACHES = 4
 _PREFIX = "kernels-"
 # numba's settings (CACHE_DIR from $NUMBA_CACHE_DIR), set on the module at run time
 _config: Any = numba.config
+#: Every kernel made by :func:`kernel`, in the order made (for :func:`load_cached`).
+_KERNELS: list[Any] = []
 
 
 def kernel(fn: F) -> F:
@@ -58,7 +60,35 @@ def kernel(fn: F) -> F:
         compiled = numba.njit(cache=where is not None, nogil=True, error_model="numpy")(fn)
     finally:
         _config.CACHE_DIR = saved
+    _KERNELS.append(compiled)
     return cast(F, compiled)
+
+
+def load_cached() -> int:
+    """Load the machine code of every kernel made so far (the modules imported) that its
+    cache holds, for each signature cached, now rather than at each kernel's first call;
+    the number loaded. A process that forks workers loads them once for all of them
+    (:mod:`pipelines.process.frames`: ~0.4 s a worker otherwise). Only what the cache
+    holds for this machine and source is asked for: a cold cache loads nothing, and its
+    kernels compile at their first call, as before; so does any kernel whose cache numba
+    cannot be asked (its cache's internals are not public API: they are used here only
+    to read which signatures are cached)."""
+    loaded = 0
+    for dispatcher in _KERNELS:
+        try:
+            cache = dispatcher._cache
+            magic = dispatcher.targetctx.codegen().magic_tuple()
+            keys = list(cache._cache_file._load_index())
+        except Exception:  # numba's internals moved: the kernel loads at its first call
+            continue
+        for key in keys:
+            sig = key[0] if isinstance(key, tuple) and len(key) > 1 else None
+            if sig is None or key[1] != magic or sig in dispatcher.overloads:
+                continue
+            # the index is this source's (numba checks its stamp): a load, not a compile
+            dispatcher.compile(sig)
+            loaded += 1
+    return loaded
 
 
 def cached(package: Path | None = None) -> bool:

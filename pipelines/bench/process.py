@@ -72,7 +72,7 @@ def _frame_step_side_by_side(
     the frames decoded in parts and whole, and the largest difference between the two
     in hub angle (rad) or tip lateral (m) over the run's frames."""
     from daq.log import iter_frames
-    from pipelines.process.frames import measure_frames
+    from pipelines.process.frames import measure_frames, stop_fork_server
     from vision import Calibration
 
     assert isinstance(calibration, Calibration)
@@ -81,6 +81,7 @@ def _frame_step_side_by_side(
     out = {}
     for _ in range(passes):
         for parts in (True, False):
+            stop_fork_server()  # each starts the workers as a run does
             t0 = time.perf_counter()
             out[parts] = measure_frames(
                 frames, calibration, stations_m=stations, decode_parts=parts
@@ -106,11 +107,15 @@ def _process_once(
     """``process --rrd`` on the log with the recording's frames made ``mode``
     ("region" | "whole"): the processed run, its previews, the total wall time, and the
     CPU time (s) of this process and of the frame workers, and the recording's size."""
+    from pipelines.process.frames import stop_fork_server
     from pipelines.process.run import process_run, write_processed
     from pipelines.review.overlays import FramePreviews, stream_processed
     from pipelines.review.viewer import open_viewer
 
     rrd = out_dir / f"run-{mode}.rrd"
+    # each pass starts the workers' fork server, as a ``process`` command does; stopped
+    # after it, the server's CPU and its workers' are in this process's children's
+    stop_fork_server()
     self0, kids0 = (
         resource.getrusage(resource.RUSAGE_SELF),
         resource.getrusage(resource.RUSAGE_CHILDREN),
@@ -128,6 +133,7 @@ def _process_once(
     viewer.close()
     processed.timings.viewer_s = time.perf_counter() - t1
     total_s = time.perf_counter() - t0
+    stop_fork_server()
     self1, kids1 = (
         resource.getrusage(resource.RUSAGE_SELF),
         resource.getrusage(resource.RUSAGE_CHILDREN),

@@ -85,6 +85,31 @@ def test_a_changed_callee_compiles_its_callers_again(tmp_path: Path) -> None:
     assert len(list((pkg / "__pycache__").glob("kernels-*"))) == 2
 
 
+LOAD = """
+import kpkg.callee as c
+from vision.jit import load_cached
+load_cached()  # all kernels made so far: vision's (imported with vision.jit) and f
+f = c.f
+print(len(f.overloads), sum(f._cache_hits.values()), sum(f._cache_misses.values()), f(1.0),
+      sum(f._cache_misses.values()))
+"""
+
+
+def test_load_cached_loads_what_the_cache_holds_and_compiles_nothing(tmp_path: Path) -> None:
+    # what a fork server does before it forks the frame workers: every cached kernel
+    # loaded at once; a cold cache loads nothing and compiles nothing (the first call does)
+    pkg = tmp_path / "kpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "callee.py").write_text(
+        "from vision.jit import kernel\n\n@kernel\ndef f(x):\n    return x + 1.0\n"
+    )
+    # cold: none loaded, no overload made, none compiled until the call (one then)
+    assert _run(LOAD, tmp_path).split() == ["0", "0", "0", "2.0", "1"]
+    # warm (the call above cached it): loaded from the cache, nothing compiled
+    assert _run(LOAD, tmp_path).split() == ["1", "1", "0", "2.0", "0"]
+
+
 def test_digest_follows_every_source(tmp_path: Path) -> None:
     (tmp_path / "a.py").write_text("x = 1\n")
     (tmp_path / "sub").mkdir()

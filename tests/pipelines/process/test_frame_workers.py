@@ -33,9 +33,10 @@ def _frames(n: int) -> list[SimpleNamespace]:
     return [SimpleNamespace(t_ns=k * 66_666_667, sequence=k, data=data) for k in range(n)]
 
 
-def _children(kind: str) -> list[int]:
-    """This process's child processes whose command line contains ``kind``."""
-    me = str(os.getpid())
+def _children(kind: str, parent: int | None = None) -> list[int]:
+    """The child processes of ``parent`` (default: this process) whose command line
+    contains ``kind``."""
+    me = str(os.getpid() if parent is None else parent)
     found = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
@@ -50,11 +51,22 @@ def _children(kind: str) -> list[int]:
     return found
 
 
+def _workers() -> list[int]:
+    """This process's frame workers: forked by its fork server (which stays, for the next
+    pool), or spawned where the platform has no fork server."""
+    forked = [
+        pid
+        for server in _children("multiprocessing.forkserver")
+        for pid in _children("multiprocessing.forkserver", parent=server)
+    ]
+    return forked + _children("multiprocessing.spawn")
+
+
 def test_workers_measure_in_order() -> None:
     out = measure_frames(_frames(30), CAL, stations_m=(0.2, 0.4), workers=2)
     assert [f.sequence for f in out] == list(range(30))
     assert not any(f.measurement.ok for f in out)  # blank frames: no beam in them
-    assert _children("multiprocessing.spawn") == []  # the pool is gone
+    assert _workers() == []  # the pool is gone
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -84,14 +96,14 @@ def test_a_worker_killed_mid_run_is_an_error(
     def kill_a_worker(n: int) -> None:
         done.append(n)
         if len(done) == 1:
-            workers = _children("multiprocessing.spawn")
+            workers = _workers()
             assert workers, "no worker process found"
             os.kill(workers[0], signal.SIGKILL)
 
     with pytest.raises(WorkerError, match=r"worker process .*died"):
         measure_frames(_frames(400), CAL, stations_m=(0.2,), workers=2, progress=kill_a_worker)
     assert sum(done) < 400
-    assert _children("multiprocessing.spawn") == []  # what was left was stopped
+    assert _workers() == []  # what was left was stopped
 
 
 def test_a_stuck_pool_is_an_error(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -102,7 +114,7 @@ def test_a_stuck_pool_is_an_error(monkeypatch: pytest.MonkeyPatch) -> None:
     def stop_workers(n: int) -> None:
         if not stopped:
             monkeypatch.setattr(frames_module, "STALL_TIMEOUT_S", 0.0)
-            for pid in _children("multiprocessing.spawn"):
+            for pid in _workers():
                 os.kill(pid, signal.SIGSTOP)
                 stopped.append(pid)
 
@@ -188,13 +200,13 @@ def test_process_as_a_user_who_is_not_root(request: pytest.FixtureRequest) -> No
 KILL_AND_EXIT = """
 import os, signal, sys
 sys.path.insert(0, sys.argv[1])
-from tests.pipelines.process.test_frame_workers import CAL, _children, _frames
+from tests.pipelines.process.test_frame_workers import CAL, _frames, _workers
 from pipelines.process.frames import WorkerError, measure_frames
 
 def kill(n):
     if not getattr(kill, "done", False):
         kill.done = True
-        os.kill(_children("multiprocessing.spawn")[0], signal.SIGKILL)
+        os.kill(_workers()[0], signal.SIGKILL)
 
 try:
     measure_frames(_frames(400), CAL, stations_m=(0.2,), workers=2, progress=kill)
@@ -230,20 +242,20 @@ def test_workers_started_ahead_measure_the_frames_and_stop() -> None:
         CAL,
         stations_m=(0.2,),
         started=started,
-        on_measured=lambda fs: seen.update(_children("multiprocessing.spawn")),
+        on_measured=lambda fs: seen.update(_workers()),
     )
     assert [f.sequence for f in out] == list(range(17))
     assert seen and seen <= ahead  # no other worker was started
     assert started.pool is None  # taken over
     started.close()  # a no-op now
-    assert _children("multiprocessing.spawn") == []
+    assert _workers() == []
     # started and never used (the run stopped before its frames): stopped by close()
     unused = start_workers(2)
     assert unused is not None
-    assert _children("multiprocessing.spawn")
+    assert _workers()
     unused.close()
     unused.close()
-    assert _children("multiprocessing.spawn") == []
+    assert _workers() == []
     assert start_workers(1) is None  # one worker: the frames are measured here
 
 
@@ -262,7 +274,7 @@ def test_workers_stopped_while_starting_leave_the_executor_finished() -> None:
         started.close()
         assert not manager.is_alive()
         assert call_queue._reader.closed
-    assert _children("multiprocessing.spawn") == []
+    assert _workers() == []
 
 
 def _spy_measured_here(monkeypatch: pytest.MonkeyPatch) -> list[int]:
@@ -303,7 +315,7 @@ def test_a_fresh_kernel_cache_measures_the_first_frames_here(
         1,
         2,
     ]
-    assert _children("multiprocessing.spawn") == []
+    assert _workers() == []
 
 
 def test_a_cache_cold_when_the_workers_started_measures_the_first_frames_here(
@@ -328,4 +340,33 @@ def test_a_cache_cold_when_the_workers_started_measures_the_first_frames_here(
     assert started is not None and started.kernels_cached
     out = measure_frames(_frames(9), CAL, stations_m=(0.2,), started=started)
     assert here == [] and [f.sequence for f in out] == list(range(9))
-    assert _children("multiprocessing.spawn") == []
+    assert _workers() == []
+
+
+def _kernels_in_this_worker() -> tuple[int, int]:
+    """(kernels whose cache holds them, of those already loaded) in the calling process."""
+    from vision.jit import _KERNELS
+
+    cached = [k for k in _KERNELS if k._cache._cache_file._load_index()]
+    return len(cached), sum(1 for k in cached if k.overloads)
+
+
+@pytest.mark.skipif(
+    "forkserver" not in __import__("multiprocessing").get_all_start_methods(),
+    reason="no fork server on this platform: workers are spawned and load their own",
+)
+def test_workers_start_with_the_cached_kernels_loaded() -> None:
+    # the fork server loads vision's cached kernels once; each worker forked from it has
+    # them before its first frame instead of loading them itself (~0.4 s a worker)
+    from vision.centreline import lag1_sums
+
+    frames_module.stop_fork_server()  # a server started by an earlier test loaded less
+    lag1_sums(np.arange(8.0), 8)  # at least this one is cached
+    started = frames_module.start_workers(2)
+    assert started is not None and started.pool is not None
+    try:
+        cached, loaded = started.pool.submit(_kernels_in_this_worker).result(timeout=120)
+    finally:
+        started.close()
+    assert cached >= 1 and loaded == cached
+    assert _workers() == []
