@@ -9,10 +9,11 @@ file, stream everything to an ``.rrd``.
 Each step's wall time is printed with the errors against the synthetic truth.
 The split of the frame step into JPEG decoding and measuring comes from timing both on
 a sample of frames in one process. The whole processing is run twice each way, passes
-alternating, with the recording's frames made from the measured region (as ``process``
-does by default) and whole (``--frame-previews whole``, before): each step side by side,
-the CPU time of this process and of the frame workers, and whether the results are
-identical. The frame step is then timed again side by side, the
+alternating, with the recording's frames made from the measured region
+(``--frame-previews region``) and whole (``--frame-previews whole``, the default):
+each step side by side, the CPU time of this process and of the frame workers (with
+their fork server, started by each pass as by a ``process`` command), and whether the
+results are identical. The frame step is then timed again side by side, the
 frames decoded in parts (only the segments measured, as ``process`` does) and whole
 (before), passes alternating, with the per bench minute each gives.
 """

@@ -1,8 +1,9 @@
 """Measure every camera frame of a run on all cores.
 
-Frames are decoded and measured in worker processes, each building its
-``vision.Measurer`` once (initializer), so only the encoded bytes cross process
-boundaries. Results come back in frame order. Each worker decodes through a
+Frames are decoded and measured in worker processes, forked by a fork server that has
+imported vision and loaded its compiled kernels once (:func:`_context`; spawned where the
+platform has none), each building its ``vision.Measurer`` once, so only the encoded
+bytes cross process boundaries. Results come back in frame order. Each worker decodes through a
 ``vision.regions.RegionReader``: of a JPEG with restart markers (beambench's capture
 writes them) only the parts the measurement reads, with the same result; other frames
 whole.
@@ -42,8 +43,9 @@ log = logging.getLogger(__name__)
 # How often the main process looks at its workers while it waits for a result, s.
 POLL_S = 0.5
 # No chunk of frames finished for this long while every worker lives: the pool is stuck.
-# A chunk takes ~0.05 s; a spawned worker imports numpy, scipy and OpenCV in a few
-# seconds, longer on a loaded machine, so the first results may take this long.
+# A chunk takes ~0.05 s; the fork server (or a spawned worker) imports numpy, OpenCV and
+# vision in a second or so, longer on a loaded machine, so the first results may take
+# this long.
 STALL_TIMEOUT_S = 120.0
 CHUNK_FRAMES = 4
 
@@ -121,8 +123,9 @@ def _ready() -> int:
 
 class StartedWorkers:
     """Frame-measuring worker processes started before the frames are measured
-    (:func:`start_workers`): a spawned worker spends its first second or more importing
-    numpy, OpenCV and vision, which then overlaps the reading of the log. Hand it to
+    (:func:`start_workers`): the fork server spends its first second or so importing
+    numpy, OpenCV and vision and loading the kernels (each spawned worker, where there is
+    no fork server), which then overlaps the reading of the log. Hand it to
     :func:`measure_frames` (which then owns it), or :meth:`close` it."""
 
     def __init__(
@@ -192,7 +195,7 @@ def start_workers(workers: int | None = None) -> StartedWorkers | None:
     pool = None
     try:
         pool = _new_pool(n_workers)
-        for _ in range(n_workers):  # a spawned pool starts a worker per task waiting
+        for _ in range(n_workers):  # the pool starts a worker per task waiting
             pool.submit(_ready)
     except OSError:
         if pool is not None:
@@ -222,7 +225,8 @@ def measure_frames(
     while the rest are measured).
 
     ``workers`` defaults to the number of cores; 1 measures in this process. Workers are
-    spawned, so a script calling this needs the usual ``if __name__ == "__main__":`` guard.
+    not forked from this process (:func:`_context`), so a script calling this needs the
+    usual ``if __name__ == "__main__":`` guard.
     ``started``: workers started ahead (:func:`start_workers`, then ``workers`` is
     theirs), taken over and stopped with the rest.
     """
