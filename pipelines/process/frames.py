@@ -22,6 +22,7 @@ import logging
 import math
 import multiprocessing
 import os
+import signal
 import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -72,6 +73,10 @@ _Setup = tuple[str, tuple[Calibration, tuple[float, ...], str, float | None, boo
 
 
 def _init_worker() -> None:
+    # Ctrl-C reaches the whole process group: the main process stops the run and the
+    # workers with it (:func:`_abandon`); a worker interrupted on its own printed a
+    # "Process ...:" line and a traceback over the run's one "error: interrupted".
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     # One thread per worker: the workers already use every core.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:

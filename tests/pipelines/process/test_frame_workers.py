@@ -370,3 +370,20 @@ def test_workers_start_with_the_cached_kernels_loaded() -> None:
         started.close()
     assert cached >= 1 and loaded == cached
     assert _workers() == []
+
+
+def _sigint_ignored() -> bool:
+    return signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+
+
+def test_workers_leave_ctrl_c_to_the_main_process() -> None:
+    # Ctrl-C reaches the process group: the main process stops the run and its workers;
+    # a worker interrupted itself printed "Process ...:" and a traceback under the run's
+    # "error: interrupted"
+    started = frames_module.start_workers(2)
+    assert started is not None and started.pool is not None
+    try:
+        assert started.pool.submit(_sigint_ignored).result(timeout=120)
+    finally:
+        started.close()
+    assert not _sigint_ignored()  # this process's own Ctrl-C is untouched
