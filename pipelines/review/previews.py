@@ -152,9 +152,8 @@ class RegionPreviews:
         if layout is None or blocks is None:
             # not kept as the last whole frame: its region is unknown (not measured), or
             # it cannot be decoded in parts
-            shown = preview(bytes(data), r)
             self.whole_frames += 1
-            return shown, "jpeg", 1.0 / r
+            return whole_preview(data, r)
         image = decode_reduced(bytes(data), r)
         self.whole_frames += 1
         canvas = np.zeros(reduced_canvas_shape(layout, r), np.uint8)
@@ -165,6 +164,12 @@ class RegionPreviews:
         self._last = _Whole(canvas, blocks, size, layout.segment_px, jpeg_layout(out))
         self._since = 0
         return out, "jpeg", 1.0 / r
+
+
+def whole_preview(data: bytes, reduction: int) -> tuple[bytes, str, float]:
+    """A frame shown whole (:func:`vision.codec.preview`), as :meth:`RegionPreviews.show`
+    gives it; depends on nothing but the frame (previews made in several threads)."""
+    return preview(bytes(data), reduction), "jpeg", 1.0 / reduction
 
 
 def region_blocks(m: FrameMeasurement, shape: tuple[int, int]) -> NDArray[np.bool_] | None:
