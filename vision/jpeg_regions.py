@@ -624,3 +624,106 @@ __all__ = [
     "segments_of_blocks",
     "splice",
 ]
+
+
+_REDUCED_FLAGS = {
+    2: cv2.IMREAD_REDUCED_GRAYSCALE_2,
+    4: cv2.IMREAD_REDUCED_GRAYSCALE_4,
+    8: cv2.IMREAD_REDUCED_GRAYSCALE_8,
+}
+
+
+def reduced_canvas_shape(layout: JpegLayout, reduction: int) -> tuple[int, int]:
+    """The shape of :func:`decode_reduced_into`'s canvas: the JPEG's MCU rows and
+    columns (its size rounded up to whole segments) at 1/``reduction``."""
+    seg_w, seg_h = layout.segment_px
+    return layout.mcu_rows * seg_h // reduction, layout.per_row * seg_w // reduction
+
+
+def decode_reduced_into(
+    layout: JpegLayout, canvas: NDArray[np.uint8], segments: NDArray[np.intp], reduction: int
+) -> None:
+    """Decode the given segments (ascending raster indices) at 1/``reduction`` (2, 4 or
+    8: libjpeg's DCT scaling, each 8 x 8 block decoded alone to ``8 / reduction`` px a
+    side, so the pixels are those of :func:`decode_reduced` of the whole JPEG) into their
+    place in a canvas of :func:`reduced_canvas_shape` (in place; what is there already
+    stays where no segment is given). The splices hold several segments to a row, as
+    :func:`decode_into`'s do. Raises :class:`~vision.errors.DecodeError` when they do
+    not decode."""
+    if reduction not in _REDUCED_FLAGS:
+        raise ParameterError("reduction", f"must be 2, 4 or 8, got {reduction!r}")
+    shape = reduced_canvas_shape(layout, reduction)
+    if canvas.shape != shape or canvas.dtype != np.uint8 or not canvas.flags.c_contiguous:
+        raise ParameterError("canvas", f"must be a C-contiguous uint8 array of {shape}")
+    seg_w, seg_h = layout.segment_px
+    out_w, out_h = seg_w // reduction, seg_h // reduction
+    segments = np.asarray(segments, dtype=np.intp)
+    across = max(1, _ROW_PX // seg_w)
+    per_splice = _max_segments(layout) * across
+    for k in range(0, len(segments), per_splice):
+        part = segments[k : k + per_splice]
+        a = min(across, len(part))
+        pad = -len(part) % a
+        if pad:  # the last row filled up with its last segment again
+            part = np.concatenate((part, np.full(pad, part[-1], dtype=np.intp)))
+        img = _imdecode(_splice(layout, part, a), _REDUCED_FLAGS[reduction])
+        if img.shape != (len(part) // a * out_h, a * out_w):
+            raise DecodeError(len(layout.data))
+        _put_segments(canvas, layout.per_row, part, img, a, out_h, out_w)
+
+
+def replaced_segments(layout: JpegLayout, segments: NDArray[np.intp], other: JpegLayout) -> bytes:
+    """The bytes of ``layout``'s JPEG with the entropy-coded data of the given segments
+    (ascending raster indices) replaced, in turn, by that of ``other``'s first
+    ``len(segments)`` segments; everything else (the header, the other segments, every
+    restart marker, whose numbers stay) as it was. Both must be coded with the same
+    tables for the result to decode as meant (the caller's to check)."""
+    seg = np.asarray(segments, dtype=np.intp)
+    if seg.size > len(other.starts):
+        raise ParameterError("segments", f"must number at most {len(other.starts)}")
+    if seg.size and not (0 <= seg.min() and seg.max() < len(layout.starts)):
+        raise ParameterError("segments", f"must be 0..{len(layout.starts) - 1}")
+    if seg.size > 1 and np.any(np.diff(seg) <= 0):
+        raise ParameterError("segments", "must be ascending")
+    return _replaced(
+        np.frombuffer(layout.data, dtype=np.uint8),
+        layout.starts,
+        layout.ends,
+        seg,
+        np.frombuffer(other.data, dtype=np.uint8),
+        other.starts,
+        other.ends,
+    ).tobytes()
+
+
+@kernel
+def _replaced(
+    data: NDArray[np.uint8],
+    starts: NDArray[np.intp],
+    ends: NDArray[np.intp],
+    seg: NDArray[np.intp],
+    new: NDArray[np.uint8],
+    new_starts: NDArray[np.intp],
+    new_ends: NDArray[np.intp],
+) -> NDArray[np.uint8]:
+    """:func:`replaced_segments`' bytes: ``data`` with segment ``seg[j]`` (its
+    ``starts``..``ends``) replaced by ``new``'s segment ``j``."""
+    total = data.size
+    for j in range(seg.size):
+        total += (new_ends[j] - new_starts[j]) - (ends[seg[j]] - starts[seg[j]])
+    out = np.empty(total, dtype=np.uint8)
+    at = 0  # in data
+    o = 0  # in out
+    for j in range(seg.size + 1):
+        stop = starts[seg[j]] if j < seg.size else data.size
+        out[o : o + stop - at] = data[at:stop]
+        o += stop - at
+        if j < seg.size:
+            m = new_ends[j] - new_starts[j]
+            out[o : o + m] = new[new_starts[j] : new_ends[j]]
+            o += m
+            at = ends[seg[j]]
+    return out
+
+
+__all__ += ["decode_reduced_into", "reduced_canvas_shape", "replaced_segments"]

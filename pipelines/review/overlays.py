@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +22,7 @@ from daq.log import LogError, iter_frames
 from pipelines.process.frames import MeasuredFrame
 from pipelines.process.run import Processed
 from pipelines.review.display import DIFFERENCE_GAIN
-from pipelines.review.previews import PREVIEW_MODES, RegionPreviews, region_note
+from pipelines.review.previews import PREVIEW_MODES, RegionPreviews, region_note, whole_preview
 from pipelines.review.viewer import FrameOverlay, RunViewer
 from vision import FrameMeasurement, VisionError
 from vision.codec import preview
@@ -167,6 +169,9 @@ PREVIEW_BUDGET_BYTES = 256 * 1024 * 1024
 # CPU at 16 per call, 2.4 s one by one, 3.0 s at 256)
 _FRAMES_PER_BATCH = 16
 _END = object()  # no more measurements will come
+# whole previews are made this many at a time (each frame alone, the decode and encode
+# outside the GIL): those left when the frames are measured use both cores, not one
+_WHOLE_THREADS = 2
 
 
 class FramePreviews:
@@ -176,10 +181,12 @@ class FramePreviews:
     Start it before ``process_run`` and give ``process_run`` its :meth:`feed` as
     ``on_measured``: most frames show only the measured region as that frame's
     (``mode="region"``), so the thread follows the measurements; ``mode="whole"`` makes
-    every frame whole, ahead of them. :func:`stream_processed` takes what it made (the
-    decodes and the JPEG encodes run outside the GIL). Up to :data:`PREVIEW_BUDGET_BYTES`
-    are kept; a failure (a frame that does not decode) is not raised here: that frame
-    and the rest are made again, in order, where they always were.
+    every frame whole, ahead of them, :data:`_WHOLE_THREADS` at a time (each depends on
+    its frame alone), so those left when the frames are measured do not leave a core
+    idle. :func:`stream_processed` takes what it made (the decodes and the JPEG encodes
+    run outside the GIL). Up to :data:`PREVIEW_BUDGET_BYTES` are kept; a failure (a frame
+    that does not decode) is not raised here: that frame and the rest are made again, in
+    order, where they always were.
     """
 
     def __init__(self, log_path: Path, reduction: int, mode: str = "whole") -> None:
@@ -195,7 +202,8 @@ class FramePreviews:
         )
         self._made: dict[int, tuple[bytes, str, float]] = {}
         self.wall_s = 0.0  # how long the thread took
-        self.cpu_s = 0.0  # and the CPU time it used
+        self.cpu_s = 0.0  # and the CPU time it used (its helper threads' too)
+        self._helpers_cpu_s: list[float] = []
         self._stop = threading.Event()
         self._measured: dict[int, FrameMeasurement] = {}
         self._fed_all = False
@@ -231,10 +239,13 @@ class FramePreviews:
             self._make()
         finally:
             self.wall_s = time.perf_counter() - t0
-            self.cpu_s = time.thread_time() - c0
+            self.cpu_s = time.thread_time() - c0 + sum(self._helpers_cpu_s)
 
     def _make(self) -> None:
         if self.composer is None:
+            return
+        if self.mode == "whole":
+            self._make_whole(self.composer)
             return
         size = 0
         try:
@@ -250,6 +261,50 @@ class FramePreviews:
                 size += len(shown[0])
         except (VisionError, LogError, OSError, ValueError):
             return  # the frames left are reduced in stream_processed, which reports it
+
+    def _make_whole(self, composer: RegionPreviews) -> None:
+        """:meth:`_make` of whole previews: the log read here, the frames made
+        :data:`_WHOLE_THREADS` at a time, kept in the log's order (the same as one by
+        one: up to the budget, up to the first that fails)."""
+        size = 0
+        pending: deque[tuple[int, Future[tuple[bytes, str, float]]]] = deque()
+
+        def made(data: bytes) -> tuple[bytes, str, float]:
+            c0 = time.thread_time()
+            try:
+                return whole_preview(data, composer.reduction)
+            finally:
+                self._helpers_cpu_s.append(time.thread_time() - c0)
+
+        def keep() -> bool:  # the oldest made frame kept; False: no more are
+            nonlocal size
+            sequence, done = pending.popleft()
+            if self._stop.is_set() or size > PREVIEW_BUDGET_BYTES:
+                return False
+            shown = done.result()
+            self._made[sequence] = shown
+            composer.whole_frames += 1
+            size += len(shown[0])
+            return True
+
+        pool = ThreadPoolExecutor(_WHOLE_THREADS, thread_name_prefix="frame-previews")
+        try:
+            for frame in iter_frames(self.log_path):
+                if self._stop.is_set() or size > PREVIEW_BUDGET_BYTES:
+                    return
+                try:
+                    pending.append((frame.sequence, pool.submit(made, frame.data)))
+                except RuntimeError:  # the interpreter is exiting (never stopped): no more
+                    return
+                if len(pending) > 2 * _WHOLE_THREADS and not keep():
+                    return
+            while pending:
+                if not keep():
+                    return
+        except (VisionError, LogError, OSError, ValueError):
+            return  # the frames left are reduced in stream_processed, which reports it
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
 
     def _finish(self) -> None:
         with self._cond:

@@ -40,7 +40,15 @@ from numpy.typing import NDArray
 
 from vision import FrameMeasurement
 from vision.codec import encode, preview
-from vision.jpeg_regions import JpegLayout, decode_reduced, jpeg_layout, segments_of_blocks, splice
+from vision.jpeg_regions import (
+    JpegLayout,
+    decode_reduced,
+    decode_reduced_into,
+    jpeg_layout,
+    reduced_canvas_shape,
+    replaced_segments,
+    segments_of_blocks,
+)
 
 #: A whole frame at least this often (frames): one a second at the bench's 15 frames/s.
 WHOLE_EVERY_FRAMES = 15
@@ -49,6 +57,8 @@ MARGIN_PX = 48.0
 #: The preview's JPEG quality (:func:`vision.codec.preview`'s default).
 QUALITY = 85
 _BLOCK = 8
+#: Re-encoded segments go side by side in rows about this wide (px).
+_ROW_PX = 1024
 
 PREVIEW_MODES = ("region", "whole")
 
@@ -97,11 +107,14 @@ class RegionPreviews:
     ) -> tuple[bytes, str, float]:
         """The frame as the recording shows it: (JPEG bytes, "jpeg", pixel scale)."""
         r = self.reduction
-        layout = jpeg_layout(bytes(data)) if encoding in ("jpeg", "jpg") else None
+        if self.whole or m is None or not m.ok or encoding not in ("jpeg", "jpg"):
+            # shown whole and not kept (no region): no use for the segments' layout
+            return self._whole(data, None, None)
+        layout = jpeg_layout(bytes(data))
         if layout is not None and layout.segment_px[0] % (_BLOCK * r):
             layout = None  # its segments would cut the reduced image's blocks
         blocks = None
-        if layout is not None and m is not None and m.ok and not self.whole:
+        if layout is not None:
             blocks = region_blocks(m, layout.blocks_shape)
         last = self._last
         size = (layout.width_px, layout.height_px) if layout is not None else None
@@ -118,8 +131,7 @@ class RegionPreviews:
         segments = segments_of_blocks(layout, region)
         canvas = last.canvas.copy()
         if segments.size:
-            strip = decode_reduced(splice(layout, segments), r)
-            _paste(layout, canvas, segments, strip, r)
+            decode_reduced_into(layout, canvas, segments, r)
         self._since += 1
         self.region_frames += 1
         self.region_fraction.append(segments.size / (layout.per_row * layout.mcu_rows))
@@ -140,13 +152,11 @@ class RegionPreviews:
         if layout is None or blocks is None:
             # not kept as the last whole frame: its region is unknown (not measured), or
             # it cannot be decoded in parts
-            shown = preview(bytes(data), r)
             self.whole_frames += 1
-            return shown, "jpeg", 1.0 / r
+            return whole_preview(data, r)
         image = decode_reduced(bytes(data), r)
         self.whole_frames += 1
-        seg_w, seg_h = layout.segment_px[0] // r, layout.segment_px[1] // r
-        canvas = np.zeros((layout.mcu_rows * seg_h, layout.per_row * seg_w), np.uint8)
+        canvas = np.zeros(reduced_canvas_shape(layout, r), np.uint8)
         canvas[: image.shape[0], : image.shape[1]] = image
         # the bytes preview() gives: the same reduced decode, encoded the same way
         out = encode(image, "jpeg", QUALITY)
@@ -154,6 +164,12 @@ class RegionPreviews:
         self._last = _Whole(canvas, blocks, size, layout.segment_px, jpeg_layout(out))
         self._since = 0
         return out, "jpeg", 1.0 / r
+
+
+def whole_preview(data: bytes, reduction: int) -> tuple[bytes, str, float]:
+    """A frame shown whole (:func:`vision.codec.preview`), as :meth:`RegionPreviews.show`
+    gives it; depends on nothing but the frame (previews made in several threads)."""
+    return preview(bytes(data), reduction), "jpeg", 1.0 / reduction
 
 
 def region_blocks(m: FrameMeasurement, shape: tuple[int, int]) -> NDArray[np.bool_] | None:
@@ -227,7 +243,7 @@ def _respliced(
     """The JPEG of ``canvas`` (reduced, padded), given the JPEG of an earlier canvas
     (``whole``, its restart segments) that differs only in the ``changed`` blocks
     ([block row, block col] of the reduced image): the segments holding changed blocks
-    encoded again (stacked, one segment to a row, the same tables), the others taken
+    encoded again (side by side, the same tables), the others taken
     as they were. A baseline scan's segments are independent (the DC predictions reset
     at each restart), so this is the bytes of encoding the whole canvas; None when the
     tables came out different (then the caller encodes the whole)."""
@@ -242,40 +258,24 @@ def _respliced(
     redo = segments_of_blocks(whole, changed[:rows, :cols])
     if redo.size == 0:
         return whole.data
+    # the segments side by side, about _ROW_PX wide (the encoder's cost is per row, as
+    # the decoder's), the last row filled up with its last segment again
+    across = min(max(1, _ROW_PX // seg_w), redo.size)
+    part = redo
+    if redo.size % across:
+        part = np.concatenate((redo, np.full(-redo.size % across, redo[-1], dtype=np.intp)))
     grid = canvas[: rows * _BLOCK, : cols * _BLOCK].reshape(rows, _BLOCK, whole.per_row, seg_w)
+    segs = grid.transpose(0, 2, 1, 3)[part // whole.per_row, part % whole.per_row]
     stack = np.ascontiguousarray(
-        grid.transpose(0, 2, 1, 3)[redo // whole.per_row, redo % whole.per_row].reshape(-1, seg_w)
+        segs.reshape(-1, across, _BLOCK, seg_w).transpose(0, 2, 1, 3).reshape(-1, across * seg_w)
     )
     new = jpeg_layout(encode(stack, "jpeg", QUALITY, restart_interval_mcu=whole.interval))
-    if new is None or new.starts.size != redo.size:
+    if new is None or new.starts.size != part.size:
         return None
     head = bytearray(whole.header)
-    struct.pack_into(">HH", head, whole.sof_size_at, stack.shape[0], seg_w)
+    struct.pack_into(">HH", head, whole.sof_size_at, *stack.shape)
     if bytes(head) != new.header:
         return None
     # the changed segments' bytes replaced, everything between them (the unchanged
     # segments and every restart marker, whose numbers stay) kept as it was
-    old_data, new_data = memoryview(whole.data), memoryview(new.data)
-    parts: list[memoryview] = []
-    at = 0
-    for j, i in enumerate(redo.tolist()):
-        parts.append(old_data[at : whole.starts_list[i]])
-        parts.append(new_data[new.starts_list[j] : new.ends_list[j]])
-        at = whole.ends_list[i]
-    parts.append(old_data[at:])
-    return b"".join(parts)
-
-
-def _paste(
-    layout: JpegLayout,
-    canvas: NDArray[np.uint8],
-    segments: NDArray[np.intp],
-    strip: NDArray[np.uint8],
-    r: int,
-) -> None:
-    """Put the reduced decode of spliced segments in their place in a reduced canvas."""
-    seg_w, seg_h = layout.segment_px[0] // r, layout.segment_px[1] // r
-    grid = canvas.reshape(layout.mcu_rows, seg_h, layout.per_row, seg_w).transpose(0, 2, 1, 3)
-    grid[segments // layout.per_row, segments % layout.per_row] = strip.reshape(
-        len(segments), seg_h, seg_w
-    )
+    return replaced_segments(whole, redo, new)

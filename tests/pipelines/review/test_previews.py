@@ -53,7 +53,10 @@ def test_previews_made_during_the_frames_give_the_same_recording(tmp_path: Path)
     frames = list(iter_frames(log_path))
     assert sorted(made) == [f.sequence for f in frames]
     image = cv2.imdecode(np.frombuffer(made[frames[0].sequence][0], np.uint8), 0)
-    assert image.shape == (frames[0].height_px // reduction, frames[0].width_px // reduction)
+    assert image is not None and image.shape == (
+        frames[0].height_px // reduction,
+        frames[0].width_px // reduction,
+    )
     ahead, inline = tmp_path / "ahead.rrd", tmp_path / "inline.rrd"
     with open_viewer("beambench-test", rrd_path=ahead) as viewer:
         stream_processed(
@@ -153,3 +156,42 @@ def test_the_log_is_read_only_for_frames_without_a_preview(
     twice = [*measured, MeasuredFrame(1, 3, None)]  # type: ignore[arg-type]
     got = list(overlays._measured_in_log_order(log_path, twice, made))
     assert [s for s, _ in got] == log_seqs and reads == [log_path]
+
+
+class _Frame:
+    def __init__(self, sequence: int, data: bytes) -> None:
+        self.sequence, self.data, self.encoding = sequence, data, "jpeg"
+
+
+def _whole_previews_of(
+    frames: list[_Frame], monkeypatch: pytest.MonkeyPatch
+) -> dict[int, tuple[bytes, str, float]]:
+    from pipelines.review import overlays
+
+    monkeypatch.setattr(overlays, "iter_frames", lambda path: iter(frames))
+    previews = FramePreviews(Path("never-opened.mcap"), 2, "whole").start()
+    made = dict(previews.take())
+    assert previews.composer is not None
+    assert previews.composer.whole_frames == len(made) and previews.cpu_s > 0
+    return made
+
+
+def test_whole_previews_made_several_at_a_time_keep_the_logs_order_up_to_a_failure(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from pipelines.review import overlays
+
+    rng = np.random.default_rng(5)
+    images = [rng.integers(0, 256, (64, 96), dtype=np.uint8) for _ in range(12)]
+    data = [bytes(cv2.imencode(".jpg", im)[1]) for im in images]
+    frames = [_Frame(10 + k, d) for k, d in enumerate(data)]
+    assert _whole_previews_of(frames, monkeypatch) == {
+        f.sequence: (preview(f.data, 2), "jpeg", 0.5) for f in frames
+    }
+    # a frame that does not decode: those before it, none after (made again later)
+    broken = [*frames[:7], _Frame(17, b"\xff\xd8 not a JPEG"), *frames[8:]]
+    assert sorted(_whole_previews_of(broken, monkeypatch)) == [f.sequence for f in frames[:7]]
+    # the budget: frames kept while those kept before are within it, as one by one
+    sizes = np.cumsum([len(preview(f.data, 2)) for f in frames])
+    monkeypatch.setattr(overlays, "PREVIEW_BUDGET_BYTES", int(sizes[4]))
+    assert sorted(_whole_previews_of(frames, monkeypatch)) == [f.sequence for f in frames[:6]]
