@@ -479,7 +479,23 @@ def _put_segments(
     """Copy the segments of ``pixels`` (``across`` to a row, in raster order) to their
     places ``at`` in ``canvas`` (``per_row`` to a row), as many as ``at`` holds."""
     # Row by row over the flat arrays with unsigned offsets: no negative-index check per
-    # byte, so the copy is vectorised (a slice assignment checks for overlap, slower).
+    # byte, so the copy is vectorised (a slice assignment checks for overlap, slower); in
+    # 8-byte words where the widths allow (a segment's row is 4 of them at beambench's
+    # interval: a third less time than byte by byte, whose loop is vectorised for longer
+    # rows than these).
+    if seg_w % 8 == 0 and canvas.shape[1] % 8 == 0 and pixels.shape[1] % 8 == 0:
+        _put_words(
+            canvas.ravel().view(np.uint64),
+            canvas.shape[1] // 8,
+            per_row,
+            at,
+            pixels.ravel().view(np.uint64),
+            pixels.shape[1] // 8,
+            across,
+            seg_h,
+            seg_w // 8,
+        )
+        return
     dst = canvas.ravel()
     src = pixels.ravel()
     dst_w = np.uint64(canvas.shape[1])
@@ -493,6 +509,35 @@ def _put_segments(
         for y in range(seg_h):
             a = np.uint64(r0 + y) * dst_w + np.uint64(c0)
             b = np.uint64(pr + y) * src_w + np.uint64(pc)
+            for x in range(width):
+                dst[a + x] = src[b + x]
+
+
+@kernel
+def _put_words(
+    dst: NDArray[np.uint64],
+    dst_w: int,
+    per_row: int,
+    at: NDArray[np.intp],
+    src: NDArray[np.uint64],
+    src_w: int,
+    across: int,
+    seg_h: int,
+    seg_w: int,
+) -> None:
+    """:func:`_put_segments` on the images as flat arrays of 8-byte words, ``dst_w``,
+    ``src_w`` and ``seg_w`` of them to a row."""
+    row_d = np.uint64(dst_w)
+    row_s = np.uint64(src_w)
+    width = np.uint64(seg_w)
+    for j in range(at.size):
+        r0 = at[j] // per_row * seg_h
+        c0 = at[j] % per_row * seg_w
+        pr = j // across * seg_h
+        pc = j % across * seg_w
+        for y in range(seg_h):
+            a = np.uint64(r0 + y) * row_d + np.uint64(c0)
+            b = np.uint64(pr + y) * row_s + np.uint64(pc)
             for x in range(width):
                 dst[a + x] = src[b + x]
 
