@@ -312,20 +312,25 @@ class RegionReader:
             behind, hub_w = self.hub_back_m + _TRACK_SLACK_M, self.hub_w_m
         in_len = float(p1 @ d0) + behind + 3 * _STEP_IN_WIDTHS * w
         # the edge scans about the beam and the hub reach this far from their centre
-        # lines, which leave the chord by up to a few widths (the beam's bending, the
-        # hub's angle to the chord)
-        scans = self._reach_m(w) + _OFF_CHORD_WIDTHS * w
+        # lines; the beam's leaves the chord by up to a few widths (its bending). The
+        # hub's runs through the pivot and the beam's root, the chord through the beam
+        # near its root: inward of the circles the two hardly part (no room off the
+        # chord: measured, none of ~750 frames of the bench's sets read past it), behind
+        # the pivot the hub's angle to the chord takes it off, which the fan covers.
+        reach = self._reach_m(w)
+        scans = reach + _OFF_CHORD_WIDTHS * w
         half_out = max(half, 0.75 * w + scans)
-        half_in = max(half, 0.75 * hub_w + scans)
+        half_in = max(half, 0.75 * hub_w + reach)
+        # behind the pivot (the plane's origin) along the hub's possible axes (the fan's
+        # sides are those axes: no room off them)
+        half_fan = half_in
         if self.smear_m > 0:
             # the previous frame was smeared (the track): so is this one, likely; its
             # scans about the beam reach that much farther, the beam's centre line
             # running from the clamp, somewhere on the inward band, to the tip
             half_out += self.smear_m
             half_in = max(half_in, 0.75 * w + scans + self.smear_m)
-        # behind the pivot (the plane's origin) along the hub's possible axes (the fan's
-        # sides are those axes: no room off them)
-        half_fan = max(half, half_in - _OFF_CHORD_WIDTHS * w)
+            half_fan = max(half_fan, 0.75 * w + reach + self.smear_m)
         fan_len = behind + 3 * _STEP_IN_WIDTHS * w
         c, s = math.cos(_HUB_FAN_RAD), math.sin(_HUB_FAN_RAD)
         fan = [np.array([[c, -s], [s, c]]) @ -d0, np.array([[c, s], [-s, c]]) @ -d0]
