@@ -1403,7 +1403,8 @@ def _fit_joint(
         g_tip, g_in = np.zeros(n_coef), np.zeros(n_coef)
         g_tip[n_coef - p_shape :] = g_shape
         if modal is None:
-            g_in[n_coef - p_shape :] = _basis(np.array([1.0 - h / amax]), degree)[0]
+            # (the kernel's recurrence: :func:`_basis`'s values, without legvander's calls)
+            g_in[n_coef - p_shape :] = _basis_t(np.array([1.0 - h / amax]), degree)[:, 0]
         else:
             g_in[n_coef - p_shape :] = modal.basis_t(np.array([amax - h]))[:, 0]
         g_slope = (g_tip - g_in) / h

@@ -205,7 +205,7 @@ class Measurer:
             raise TypeError(f"image_gray must be a numpy array, got {type(image_gray).__name__}")
         if image_gray.ndim != 2 or image_gray.dtype != np.uint8 or min(image_gray.shape) < 16:
             return self._fail(f"not a uint8 gray [row, col] image (shape {image_gray.shape})")
-        if float(image_gray[::16, ::16].std()) < 2.0:
+        if _blank(image_gray):
             return self._fail("blank frame (no contrast)")
         try:
             if self.method == "paper":
@@ -888,6 +888,38 @@ def _background_slope(
         z = r / (TUKEY_C * sig)
         w = np.where(np.abs(z) < 1.0, (1.0 - z * z) ** 2, 0.0)
     return np.asarray(basis @ coef, dtype=np.float64)
+
+
+#: A frame is blank when the standard deviation of every 16th pixel of every 16th row
+#: is below this (DN; an integer: its square is compared exactly).
+_BLANK_STD = 2
+
+
+def _blank(image: NDArray[np.uint8]) -> bool:
+    """Whether ``image[::16, ::16].std() < _BLANK_STD``: decided from the samples'
+    exact integer sums (:func:`_coarse_sums`; numpy's float ``std`` of them is a
+    twentieth of a frame's measurement), and by numpy's own ``std`` where the exact
+    variance lies within 1e-9 of the limit's square, where its rounding could decide."""
+    n, s1, s2 = _coarse_sums(image)
+    # n^2 var = n s2 - s1^2, in Python's integers (exact)
+    limit = _BLANK_STD * _BLANK_STD * n * n
+    gap = n * int(s2) - int(s1) * int(s1) - limit
+    if abs(gap) * 10**9 <= limit or n > 10**7:
+        return float(image[::16, ::16].std()) < _BLANK_STD
+    return gap < 0
+
+
+@kernel
+def _coarse_sums(image: NDArray[np.uint8]) -> tuple[int, int, int]:
+    """The count, sum and sum of squares of ``image[::16, ::16]`` (integers: exact)."""
+    h, w = image.shape
+    s1, s2 = 0, 0
+    for i in range(0, h, 16):
+        for j in range(0, w, 16):
+            v = np.int64(image[i, j])
+            s1 += v
+            s2 += v * v
+    return ((h + 15) // 16) * ((w + 15) // 16), s1, s2
 
 
 def _rough_slope(

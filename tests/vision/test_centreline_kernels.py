@@ -187,6 +187,15 @@ def test_basis_kernel_is_numpys_legendre_recurrence_exactly() -> None:
             np.testing.assert_array_equal(cl._basis_t(u, degree), _basis_t_ref(u, degree))
 
 
+def test_basis_kernel_is_the_legvander_basis_exactly() -> None:
+    # (the fit's end covariance takes its one-point basis from the kernel)
+    rng = np.random.default_rng(12)
+    for degree in (2, 3, 5, 8, 11):
+        for n in (1, 7, 1333):
+            u = rng.uniform(-0.1, 1.2, n)
+            np.testing.assert_array_equal(cl._basis_t(u, degree), cl._basis(u, degree).T)
+
+
 def test_lu_kernels_solve_and_invert_as_numpy_does() -> None:
     rng = np.random.default_rng(5)
     for k in (1, 2, 6, 11):
