@@ -1208,6 +1208,7 @@ def fit_clamped_joint(
     along: CentreLine | ModalCentreLine | None = None,
     edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
     inliers: NDArray[np.bool_] | None = None,
+    memo: PointsMemo | None = None,
 ) -> JointFit | str:
     """The hub's axis and the clamped centre line, fitted together.
 
@@ -1248,10 +1249,24 @@ def fit_clamped_joint(
     such a reference has no shape test and no free root slope (NaN: the fit whose
     inliers it takes checks its root).
 
+    ``memo``: a :class:`PointsMemo` shared by fits of the same beam points (``left``,
+    ``right`` and ``amax`` the same): what they compute from the points alone (the
+    shapes at them, the edges' slope, the modes' correction) is computed once.
+
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
     if modes <= 0:
         return _fit_joint(
-            left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, None, edge_slope, inliers
+            left,
+            right,
+            hub_a,
+            hub_b,
+            degree,
+            amax,
+            clamp_from_pivot,
+            None,
+            edge_slope,
+            inliers,
+            memo,
         )
     if not (math.isfinite(beam_length) and beam_length > 0):
         raise ValueError(f"beam_length must be positive with modes, got {beam_length!r}")
@@ -1266,6 +1281,8 @@ def fit_clamped_joint(
             clamp_from_pivot,
             _Modes(modes, beam_length, amax, None),
             edge_slope,
+            None,
+            memo,
         )
         if isinstance(first, str):
             return first
@@ -1283,6 +1300,64 @@ def fit_clamped_joint(
         shape,
         slope_fn,
         inliers,
+        memo,
+    )
+
+
+class PointsMemo:
+    """What :func:`fit_clamped_joint` computes from a set of beam points alone (the
+    polynomial's and the modes' shapes at them, the edges' slope there, the modes'
+    correction), kept for other fits of the same points (a modal fit's references:
+    the polynomial on its inliers, two more modes). Each entry is keyed by what it
+    depends on besides the points (the objects themselves held, so that a key's
+    ``id`` stays theirs); every array is the caller's to read, never to write."""
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple[Any, ...], tuple[Any, NDArray[np.float64]]] = {}
+
+    def get(
+        self, key: tuple[Any, ...], owner: Any, make: Callable[[], NDArray[np.float64]]
+    ) -> NDArray[np.float64]:
+        """The entry of ``key`` (``owner``: the object whose ``id`` the key holds, or
+        None), made by ``make`` the first time."""
+        hit = self._entries.get(key)
+        if hit is None or hit[0] is not owner:
+            hit = self._entries[key] = (owner, make())
+        return hit[1]
+
+    def modes(self, shape: _Modes, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``shape.basis_t(a)`` at the memo's points ``a``: a fit of more modes on the
+        same arc lengths computes only the modes it adds (each mode's row is computed
+        alone: the same values)."""
+        along = shape.along
+        base = (shape.beam_length, id(along))
+        x = self.get(("modes_x", *base), along, lambda: shape.modes_x(a))
+        key = ("modes", shape.n, *base)
+        hit = self._entries.get(key)
+        if hit is not None and hit[0] is along:
+            return hit[1]
+        have = [
+            k[1]
+            for k, v in self._entries.items()
+            if k[0] == "modes" and k[2:] == base and v[0] is along and k[1] < shape.n
+        ]
+        if have:
+            first = max(have)
+            rows = np.concatenate(
+                [self._entries[("modes", first, *base)][1], _modes_rows(x, first, shape.n)]
+            )
+        else:
+            rows = _modes_rows(x, 0, shape.n)
+        self._entries[key] = (along, rows)
+        return rows
+
+
+def _modes_rows(x: NDArray[np.float64], first: int, last: int) -> NDArray[np.float64]:
+    """Rows ``first .. last - 1`` of ``cantilever_modes_t(x, last)`` (each mode's row
+    from its own constants: the first modes' constants are the same for any count)."""
+    beta, sigma, big = _mode_constants(last)
+    return _modes_k(
+        np.ascontiguousarray(x, dtype=np.float64), beta[first:], sigma[first:], big[first:], 0
     )
 
 
@@ -1297,8 +1372,12 @@ class _Modes:
     along: ArcMap | None
 
     def basis_t(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return cantilever_modes_t(self.modes_x(a), self.n)
+
+    def modes_x(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The modes' argument ``s / L`` at axis coordinates ``a``."""
         s = a if self.along is None else self.along(a)
-        return cantilever_modes_t(s / self.beam_length, self.n)
+        return np.asarray(s / self.beam_length, dtype=np.float64)
 
     def correction(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.zeros_like(a) if self.along is None else self.along.correction(a)
@@ -1318,10 +1397,12 @@ def _fit_joint(
     modal: _Modes | None,
     edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
     inliers: NDArray[np.bool_] | None = None,
+    memo: PointsMemo | None = None,
 ) -> JointFit | str:
     """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space:
-    the shapes, the edges' slope and the modes' correction at the beam's points here,
-    the design, the fit and its statistics in three kernels (:func:`_fit_joint_core`)."""
+    the shapes, the edges' slope and the modes' correction at the beam's points here
+    (from ``memo`` when given), the design, the fit and its statistics in three kernels
+    (:func:`_fit_joint_core`)."""
     nl, nr = len(left), len(right)
     use_hub = len(hub_a) >= 5 and len(hub_b) >= 5
     if not use_hub:
@@ -1333,19 +1414,38 @@ def _fit_joint(
     n_all = n_beam + len(hub_a) + len(hub_b)
     given = inliers is not None and len(inliers) == n_all
     keep = np.array(inliers, dtype=bool) if given else np.ones(n_all, dtype=bool)
+    if memo is None:
+        memo = PointsMemo()
+
+    def poly_shape() -> NDArray[np.float64]:
+        return _basis_t(a_beam / amax, degree)
+
     if modal is None:
-        shape = _basis_t(a_beam / amax, degree)
+        shape = memo.get(("poly", degree, amax), None, poly_shape)
         corr, extra, g_shape = _NO_VALUES, _NO_ROWS, _tip_gradient(degree)[2:]
     else:
-        shape = modal.basis_t(a_beam)
+        along = modal.along
+        shape = memo.modes(modal, a_beam)
         # The modes give the linear theory's deflection, int theta; an edge point lies
         # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
-        corr = _NO_VALUES if modal.along is None else modal.correction(a_beam)
+        corr = (
+            _NO_VALUES
+            if along is None
+            else memo.get(("corr", id(along)), along, lambda: along.correction(a_beam))
+        )
         # the shape test's extra shapes (none for a reference on another fit's inliers)
-        extra = _NO_ROWS if given else _basis_t(a_beam / amax, degree)
+        extra = _NO_ROWS if given else memo.get(("poly", degree, amax), None, poly_shape)
         g_shape = modal.basis_t(np.array([amax]))[:, 0]
     # Half the width along the normal: 1 / cos(theta) across the axis.
-    slope = _NO_VALUES if edge_slope is None else np.asarray(edge_slope(a_beam), dtype=np.float64)
+    slope = (
+        _NO_VALUES
+        if edge_slope is None
+        else memo.get(
+            ("slope", edge_slope),
+            None,
+            lambda: np.asarray(edge_slope(a_beam), dtype=np.float64),
+        )
+    )
     (
         status,
         coef,
@@ -1392,6 +1492,8 @@ def _fit_joint(
             clamp_from_pivot,
             modal,
             edge_slope,
+            None,
+            memo,
         )
     n_coef = len(coef)
     p_shape = len(g_shape)

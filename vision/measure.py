@@ -39,6 +39,7 @@ from vision.centreline import (
     CentreLine,
     JointFit,
     ModalCentreLine,
+    PointsMemo,
     arc_length,
     fit_clamped_joint,
     linspace,
@@ -452,6 +453,9 @@ class Measurer:
         for _ in range(4):
             d_clamp = float(clamp @ e)
             la, lb, ha, hb, amax = self._frame(pa, pb, hub_a, hub_b, d_clamp, e, hub_w, length)
+            # what the fits of these points compute from them alone, kept for the
+            # references below
+            memo = PointsMemo()
             res = fit_clamped_joint(
                 la,
                 lb,
@@ -464,6 +468,7 @@ class Measurer:
                 beam_length=length,
                 along=poly.fit.centre,
                 edge_slope=poly.fit.centre.deriv if edges else None,
+                memo=memo,
             )
             if isinstance(res, str):
                 return None
@@ -490,6 +495,7 @@ class Measurer:
             d_clamp,
             edge_slope=poly.fit.centre.deriv if edges else None,
             inliers=joint.inliers,
+            memo=memo,
         )
         ref = refit()
         if isinstance(ref, str):
@@ -916,7 +922,7 @@ def _coarse_sums(image: NDArray[np.uint8]) -> tuple[int, int, int]:
     s1, s2 = 0, 0
     for i in range(0, h, 16):
         for j in range(0, w, 16):
-            v = np.int64(image[i, j])
+            v = int(image[i, j])
             s1 += v
             s2 += v * v
     return ((h + 15) // 16) * ((w + 15) // 16), s1, s2
