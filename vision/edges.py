@@ -262,7 +262,7 @@ def _scan(
     lines = np.concatenate([g.lines for g in geos])
     sizes = [len(g.lines) for g in geos]
     n = len(lines)
-    bounds = np.cumsum([0, *sizes])
+    bounds = np.array(list(itertools.accumulate(sizes, initial=0)), dtype=np.intp)
     reaches = np.array([g.reach for g in geos], dtype=np.intp)
     levels = estimator in ("area", "erf")
     buf, peak, cen, step, ramp, lo2, hi2 = _scan_kernel(
@@ -280,7 +280,7 @@ def _scan(
         levels,
     )
     # Each line spans its own strip's 2 reach + 1 samples (see _scan_kernel).
-    pad, m = max_window, 2 * int(reaches.max()) + 1
+    pad, m = max_window, 2 * max(g.reach for g in geos) + 1
     prof2 = buf[:, pad : pad + m]
     if levels and estimator == "erf":
         # One edge width per strip and side (lines n.. are the falling sides).

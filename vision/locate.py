@@ -25,7 +25,15 @@ from numpy.typing import NDArray
 
 from vision.errors import FrameFailure
 from vision.jit import kernel
-from vision.sampling import BilinearPlan, bilinear, median, median_in_place, numpy_sum, select_kth
+from vision.sampling import (
+    BilinearPlan,
+    along_across,
+    bilinear,
+    median,
+    median_in_place,
+    numpy_sum,
+    select_kth,
+)
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -594,7 +602,7 @@ def locate(
             f"{lo * 1e3:.1f} .. {hi * 1e3:.0f} mm wide crossing both circles about the pivot)"
         )
     p1, p2, w0 = found
-    d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
+    d0 = _unit(p2 - p1)
     w_out = outward_width(w0, beam_width)
     outward = _follow(
         image, to_px, p2, d0, w_out, follow_half_width(w_out), beam_length * 0.7, px_m, 2.5
@@ -646,6 +654,12 @@ def locate(
     return Rough(beam, clamp, hub_back, med, tip, hub_pts[:last][keep[:last]], w_beam)
 
 
+def _unit(d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``d / np.linalg.norm(d)`` of a float64 vector: the norm as numpy computes it,
+    ``sqrt(d.dot(d))``, without its generic checks."""
+    return d / math.sqrt(float(d.dot(d)))
+
+
 def _strip_end(
     image: NDArray[np.uint8],
     to_px: ToPx,
@@ -655,8 +669,7 @@ def _strip_end(
 ) -> NDArray[np.float64]:
     """Where the strip ends beyond the last tracked point (half-brightness crossing)."""
     last = beam[-1]
-    d = last - beam[max(0, len(beam) - 3)]
-    d /= np.linalg.norm(d)
+    d = _unit(last - beam[max(0, len(beam) - 3)])
     t = np.arange(-width, 4.0 * width, 0.5 * px_m)
     v = bilinear(image, to_px(last[None, :] + t[:, None] * d[None, :]))
     k = _strip_end_at(v, int(width / (0.5 * px_m)))
@@ -744,8 +757,7 @@ def _follow(
     if not len(cs):
         return np.zeros((0, 2)), np.zeros(0)
     ts = ts_all[np.concatenate(at)]
-    out = (start[None, :] + ts[:, None] * direction[None, :]) + cs[:, None] * n[None, :]
-    return out, np.concatenate(widths)
+    return along_across(start, direction, n, ts, cs), np.concatenate(widths)
 
 
 @kernel

@@ -52,7 +52,7 @@ from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.jit import kernel
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import bilinear, median, median_in_place
+from vision.sampling import along_across, bilinear, median, median_in_place
 
 log = logging.getLogger(__name__)
 
@@ -397,7 +397,7 @@ class Measurer:
         a_line = linspace(0.0, a_tip, k)
         b_line = centre(a_line)
         b_line[-1] = b_tip
-        line_m = clamp[None, :] + a_line[:, None] * e[None, :] + b_line[:, None] * n[None, :]
+        line_m = along_across(clamp, e, n, a_line, b_line)
         back = clamp + back_a * e
         hub_px = cal.to_px(np.vstack([back, clamp]))
         return FrameMeasurement(
@@ -608,7 +608,7 @@ class Measurer:
             raise FrameFailure("beam too short in view")
         aq = linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
         bq = np.interp(aq, a, b)
-        beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
+        beam_line = along_across(clamp, e, n, aq, bq)
         if not with_hub:
             ((pa, pb, spread),) = self._strip_points(image, [(beam_line, 0.5 * w_beam)])
             return None, (pa, pb), spread
