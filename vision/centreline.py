@@ -36,7 +36,7 @@ from numpy.polynomial import Legendre, Polynomial
 from numpy.typing import NDArray
 
 from vision.jit import kernel
-from vision.sampling import median, median_in_place
+from vision.sampling import median, median_in_place, numpy_sum
 
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
 TUKEY_C = 4.685
@@ -1128,7 +1128,23 @@ _ARC_SAMPLES = 801
 def arc_length(centre: CentreLine | ModalCentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
     a = linspace(0.0, a_end, _ARC_SAMPLES)
-    return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
+    return _arc_trapezoid_k(a, np.ascontiguousarray(centre.deriv(a), dtype=np.float64))
+
+
+@kernel
+def _arc_trapezoid_k(x: NDArray[np.float64], slope: NDArray[np.float64]) -> float:
+    """``np.trapezoid(np.sqrt(1.0 + slope**2), x)``: numpy's operations per interval,
+    ``diff(x) * (y[1:] + y[:-1]) / 2.0``, summed as numpy sums (:func:`numpy_sum`)."""
+    n = x.shape[0]
+    if n < 2:
+        return 0.0
+    v = np.empty(n - 1)
+    prev = math.sqrt(1.0 + slope[0] * slope[0])
+    for i in range(1, n):
+        cur = math.sqrt(1.0 + slope[i] * slope[i])
+        v[i - 1] = (x[i] - x[i - 1]) * (cur + prev) / 2.0
+        prev = cur
+    return numpy_sum(v, n - 1)
 
 
 def stations_to_a(

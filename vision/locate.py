@@ -626,25 +626,19 @@ def locate(
     if len(widths_in):
         shown = min(shown_out, median(widths_in[:3]))
     w_beam = working_width(shown, beam_width)
-    wide = np.flatnonzero(widths_in > _HUB_WIDENING * w_beam)
-    if wide.size < 2:
+    # The hub: from the first profile wider than the beam by _HUB_WIDENING (two at
+    # least), while the width stays near its median; it ends at the first two widths
+    # in a row that disagree (one noisy width is not the end): :func:`_hub_run`.
+    n_wide, k0, med, keep, last = _hub_run(
+        np.ascontiguousarray(widths_in, dtype=np.float64), _HUB_WIDENING * w_beam
+    )
+    if n_wide < 2:
         raise FrameFailure(
             f"no hub found (the {shown * 1e3:.1f} mm strip does not widen toward the pivot)"
         )
-    k0 = int(wide[0])
     clamp = pts_in[k0 - 1] if k0 > 0 else pts_in[0]
     clamp = 0.5 * (clamp + pts_in[k0])
     hub_pts = pts_in[k0:]
-    hub_w = widths_in[k0:]
-    # The hub continues while the width stays near its median.
-    med = median(hub_w)
-    keep = np.abs(hub_w - med) < 0.25 * med
-    # The hub ends at the first two widths in a row that disagree (one noisy width is
-    # not the end).
-    bad2 = ~keep[:-1] & ~keep[1:]
-    last = int(np.argmax(bad2)) if bad2.any() else len(keep)
-    while last > 0 and not keep[last - 1]:
-        last -= 1
     if last < 2:
         raise FrameFailure("no hub found (too short)")
     hub_back = hub_pts[last - 1]
@@ -652,6 +646,40 @@ def locate(
     beam = np.vstack([beam_in, p1[None, :], outward[0]])
     tip = _strip_end(image, to_px, beam, w_beam, px_m)
     return Rough(beam, clamp, hub_back, med, tip, hub_pts[:last][keep[:last]], w_beam)
+
+
+@kernel
+def _hub_run(
+    widths: NDArray[np.float64], wider: float
+) -> tuple[int, int, float, NDArray[np.bool_], int]:
+    """:func:`locate`'s hub along the inward profiles' ``widths``: how many are wider
+    than ``wider`` and the first of them ``k0``; from it on (the hub's widths), their
+    median, which of them lie within a quarter of it (``keep``), and where the hub ends
+    (``last``: before the first two in a row that do not, less the kept run's
+    trailing misses). (NaN widths are never wider; a NaN among the hub's makes its
+    median NaN, as numpy's.)"""
+    n_wide, k0 = 0, -1
+    for i in range(widths.size):
+        if widths[i] > wider:
+            if n_wide == 0:
+                k0 = i
+            n_wide += 1
+    if n_wide < 2:
+        return n_wide, k0, math.nan, np.zeros(0, dtype=np.bool_), 0
+    hub_w = widths[k0:]
+    med = median_in_place(hub_w.copy())
+    n = hub_w.size
+    keep = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        keep[i] = abs(hub_w[i] - med) < 0.25 * med
+    last = n
+    for i in range(n - 1):
+        if not keep[i] and not keep[i + 1]:
+            last = i
+            break
+    while last > 0 and not keep[last - 1]:
+        last -= 1
+    return n_wide, k0, med, keep, last
 
 
 def _unit(d: NDArray[np.float64]) -> NDArray[np.float64]:

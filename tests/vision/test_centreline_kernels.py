@@ -772,3 +772,17 @@ def test_hub_straightness_kernel_against_the_numpy_form() -> None:
         assert rho == pytest.approx(want_rho, rel=1e-9, abs=1e-12), k
         if k % 3 == 0 and min(na, nb) > 40 and k % 4:
             assert rho > 0.9, (k, rho)
+
+
+def test_arc_length_is_numpys_trapezoid_exactly() -> None:
+    """The arc length's kernel against ``np.trapezoid`` of ``sqrt(1 + slope^2)``, for a
+    polynomial centre line and a modal one, over several ends."""
+    rng = np.random.default_rng(13)
+    for _ in range(5):
+        poly = cl.CentreLine(rng.normal(0, 0.05, 9), 0.8)
+        modal = cl.ModalCentreLine(rng.normal(0, 0.02, 4), 0.835, 0.8)
+        for centre in (poly, modal):
+            for end in (0.3, 0.8, 0.86):
+                a = cl.linspace(0.0, end, cl._ARC_SAMPLES)
+                want = float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
+                assert cl.arc_length(centre, end) == want
