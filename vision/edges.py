@@ -265,11 +265,12 @@ def _scan(
     bounds = np.array(list(itertools.accumulate(sizes, initial=0)), dtype=np.intp)
     reaches = np.array([g.reach for g in geos], dtype=np.intp)
     levels = estimator in ("area", "erf")
+    tops = np.concatenate([g.top for g in geos])
     buf, peak, cen, step, ramp, lo2, hi2 = _scan_kernel(
         np.ascontiguousarray(image),
         columns,
         lines,
-        np.concatenate([g.top for g in geos]),
+        tops,
         np.concatenate([g.yc for g in geos]),
         np.concatenate([g.half for g in geos]),
         bounds,
@@ -289,17 +290,9 @@ def _scan(
     elif estimator == "gauss3":
         g = edge_gauss3(np.subtract(prof2[:, 1:], prof2[:, :-1]), peak)
         cen = np.where(np.isfinite(g), g, cen)
-    ca, cb = cen[:n], cen[n:]
-    # (x, y): the line index and the position along it, whichever axis each is.
-    line_axis, along_axis = (0, 1) if columns else (1, 0)
-    base = np.concatenate([g.top for g in geos]).astype(np.float64)
-    side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
-    side_a[:, line_axis] = side_b[:, line_axis] = lines
-    np.add(base, ca, out=side_a[:, along_axis])
-    np.add(base, cb, out=side_b[:, along_axis])
     contrast = np.minimum(step[:n], step[n:])
     spread = np.maximum(ramp[:n], ramp[n:])
-    good = np.isfinite(ca) & np.isfinite(cb) & (contrast > 0)
+    side_a, side_b, good = _sides_k(lines, tops, cen, contrast, columns)
     out = []
     for a, b in itertools.pairwise(bounds):
         k = good[a:b]
@@ -308,6 +301,31 @@ def _scan(
         else:
             out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
     return out
+
+
+@kernel
+def _sides_k(
+    lines: NDArray[np.intp],
+    tops: NDArray[np.intp],
+    cen: NDArray[np.float64],
+    contrast: NDArray[np.float64],
+    columns: bool,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`_scan`'s edge points (x, y) of both sides (``cen``: the rising sides'
+    positions along the lines, then the falling sides'): the line index and its first
+    sample's position plus the edge's, whichever axis each is; and which lines have
+    both edges (finite) and contrast."""
+    n = lines.shape[0]
+    la, aa = (0, 1) if columns else (1, 0)
+    side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
+    good = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        base = np.float64(tops[i])
+        side_a[i, la] = side_b[i, la] = np.float64(lines[i])
+        side_a[i, aa] = base + cen[i]
+        side_b[i, aa] = base + cen[n + i]
+        good[i] = np.isfinite(cen[i]) and np.isfinite(cen[n + i]) and contrast[i] > 0
+    return side_a, side_b, good
 
 
 #: The profiles' padding above their first sample (and its negation below the last).

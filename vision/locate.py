@@ -770,7 +770,7 @@ def _follow(
     b0, size, more = 0, _FOLLOW_BATCH, iter(_FOLLOW_MORE)
     while b0 < len(ts_all) and not lost:
         ts = ts_all[b0 : b0 + size]
-        pts = _grid(start[0] + ts * direction[0], start[1] + ts * direction[1], *across)
+        pts = _offset_grid(ts, start, direction, *across)
         vals = bilinear(image, to_px(pts)).reshape(len(ts), len(offs))
         cb, wb, kb = np.empty(len(ts)), np.empty(len(ts)), np.empty(len(ts), np.int64)
         count, expect, prev_w, missed, lost = _follow_batch(
@@ -786,6 +786,26 @@ def _follow(
         return np.zeros((0, 2)), np.zeros(0)
     ts = ts_all[np.concatenate(at)]
     return along_across(start, direction, n, ts, cs), np.concatenate(widths)
+
+
+@kernel
+def _offset_grid(
+    t: NDArray[np.float64],
+    start: NDArray[np.float64],
+    direction: NDArray[np.float64],
+    dx: NDArray[np.float64],
+    dy: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`_grid` of the points ``start + t direction`` (K) and the offsets (dx, dy)
+    (M): ``(start + t_k direction) + d_j``, the sums as numpy's arrays gave them."""
+    out = np.empty((t.size * dx.size, 2))
+    for k in range(t.size):
+        x = start[0] + t[k] * direction[0]
+        y = start[1] + t[k] * direction[1]
+        for j in range(dx.size):
+            out[k * dx.size + j, 0] = x + dx[j]
+            out[k * dx.size + j, 1] = y + dy[j]
+    return out
 
 
 @kernel

@@ -40,6 +40,7 @@ from vision.centreline import (
     JointFit,
     ModalCentreLine,
     PointsMemo,
+    _polyval_k,
     arc_length,
     fit_clamped_joint,
     linspace,
@@ -52,7 +53,7 @@ from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.jit import kernel
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import along_across, bilinear, median, median_in_place
+from vision.sampling import along_across, bilinear, median, median_in_place, select_kth
 
 log = logging.getLogger(__name__)
 
@@ -259,7 +260,7 @@ class Measurer:
         blur = median(spread)
         smear_px = 0.0
         k90 = int(0.9 * (len(spread) - 1))
-        tip_blur = float(np.partition(spread, k90)[k90])  # the 90th percentile
+        tip_blur = _kth(spread, k90)  # the 90th percentile
         if blur <= self.max_blur_px and tip_blur > _TIP_BLUR_FACTOR * self.max_blur_px:
             # A beam swinging about its root smears most toward its tip: a sharp root
             # and an outer tenth smeared beyond the edges' reach. Its edges there are
@@ -736,11 +737,10 @@ class Measurer:
         )
         if len(la) < 5 or amax < 0.3 * length:
             raise FrameFailure("beam too short in view")
-        amax = float(max(amax, lb[:, 0].max()))
+        amax = float(max(amax, np.maximum.reduce(lb[:, 0])))
         n = np.array([-ey, ex])
-        da, db = hub_a - np.array([ox, oy]), hub_b - np.array([ox, oy])
-        ha = np.column_stack([da @ e, da @ n])
-        hb = np.column_stack([db @ e, db @ n])
+        o = np.array([ox, oy])
+        ha, hb = _columns(hub_a - o, e, n), _columns(hub_b - o, e, n)
         if swap:
             la, lb = lb, la
         return la, lb, ha, hb, amax
@@ -937,20 +937,81 @@ def _rough_slope(
     n = np.array([-e[1], e[0]])
     rel = rough.beam - clamp
     a, b = rel @ e, rel @ n
-    scale = max(float(np.max(np.abs(a))), 1e-6)
+    scale = max(float(np.maximum.reduce(np.abs(a))), 1e-6)  # (np.max's reduction)
     deg = min(4, max(len(a) - 2, 0))
     if deg < 1:
         return lambda q: np.zeros_like(np.asarray(q, dtype=np.float64))
     # Least squares by the normal equations (a quartic in a / scale on [0, 1]: well
     # conditioned; a tenth of polyfit's SVD).
-    vand = np.vander(a / scale, deg + 1, increasing=True)
+    vand = _vander_k(np.ascontiguousarray(a / scale), deg + 1)
     coef = np.linalg.solve(vand.T @ vand, vand.T @ b)
-    der = coef[1:] * np.arange(1, deg + 1)
+    der = np.ascontiguousarray(coef[1:] * np.arange(1, deg + 1), dtype=np.float64)
 
     def slope(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(q) / scale, der) / scale)
+        # polyval(q / scale, der) / scale (:func:`_scaled_polyval_k`)
+        x = np.ascontiguousarray(q, dtype=np.float64)
+        return _scaled_polyval_k(x.reshape(-1), der, scale).reshape(x.shape)
 
     return slope
+
+
+@kernel
+def _vander_k(x: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    """``np.vander(x, n, increasing=True)`` of float64 ``x``: 1, x, then each power the
+    last times x (numpy's ``multiply.accumulate``)."""
+    out = np.empty((x.shape[0], n))
+    for i in range(x.shape[0]):
+        if n > 0:
+            out[i, 0] = 1.0
+        if n > 1:
+            out[i, 1] = x[i]
+        for k in range(2, n):
+            out[i, k] = out[i, k - 1] * x[i]
+    return out
+
+
+@kernel
+def _scaled_polyval_k(
+    q: NDArray[np.float64], c: NDArray[np.float64], scale: float
+) -> NDArray[np.float64]:
+    """``np.polynomial.polynomial.polyval(q / scale, c) / scale`` point by point
+    (:func:`~vision.centreline._polyval_k`: Horner's rule as numpy runs it)."""
+    out = np.empty(q.shape[0])
+    for i in range(q.shape[0]):
+        out[i] = _polyval_k(c, q[i] / scale) / scale
+    return out
+
+
+def _columns(
+    d: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``np.column_stack([d @ e, d @ n])`` of points ``d`` (N, 2), without its
+    wrapper's calls (the products stay numpy's: BLAS rounds them its own way)."""
+    out = np.empty((len(d), 2))
+    out[:, 0] = d @ e
+    out[:, 1] = d @ n
+    return out
+
+
+def _kth(x: NDArray[np.float64], k: int) -> float:
+    """``np.partition(x, k)[k]`` of a float64 vector: its k-th smallest value, NaN where
+    k reaches the NaNs numpy sorts last (:func:`_kth_k`)."""
+    return float(_kth_k(np.ascontiguousarray(x, dtype=np.float64), k))
+
+
+@kernel
+def _kth_k(x: NDArray[np.float64], k: int) -> float:
+    """:func:`_kth`: the finite values' (and infinities') k-th by selection on a copy."""
+    w = np.empty(x.shape[0])
+    m = 0
+    for i in range(x.shape[0]):
+        if x[i] == x[i]:
+            w[m] = x[i]
+            m += 1
+    if k >= m:
+        return math.nan
+    select_kth(w, k, m)
+    return w[k]
 
 
 def _clear_of_faces(

@@ -21,7 +21,9 @@ from vision.locate import (
     _circle_candidates,
     _extreme_wrap,
     _follow_batch,
+    _grid,
     _hub_run,
+    _offset_grid,
     _strip_end_at,
     _uniform_wrap,
     find_strip,
@@ -208,3 +210,18 @@ def test_the_hub_run_is_the_numpy_forms() -> None:
         assert (k0, last) == (want[0], want[3])
         np.testing.assert_array_equal(med, want[1])
         np.testing.assert_array_equal(keep, want[2])
+
+
+def test_the_grids_are_the_numpy_forms() -> None:
+    """The follow's and the end faces' sample grids against ``_grid`` of the numpy
+    arrays they replace, bit for bit."""
+    from vision.hub import _face_grid
+
+    rng = np.random.default_rng(9)
+    for k, m in ((1, 1), (3, 17), (16, 40)):
+        t, off = rng.normal(size=k) * 0.3, rng.normal(size=m) * 0.01
+        p, d, n = rng.normal(size=2), rng.normal(size=2), rng.normal(size=2)
+        want = _grid(p[0] + t * d[0], p[1] + t * d[1], off * n[0], off * n[1])
+        np.testing.assert_array_equal(_offset_grid(t, p, d, off * n[0], off * n[1]), want)
+        want = _grid(off * n[0], off * n[1], p[0] + t * d[0], p[1] + t * d[1])
+        np.testing.assert_array_equal(_face_grid(off, n, p, t, d), want)
