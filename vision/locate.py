@@ -29,6 +29,7 @@ from vision.sampling import (
     BilinearPlan,
     along_across,
     bilinear,
+    bilinear_points,
     median,
     median_in_place,
     numpy_sum,
@@ -768,10 +769,13 @@ def _follow(
     lost = False
     missed = False
     b0, size, more = 0, _FOLLOW_BATCH, iter(_FOLLOW_MORE)
+    image = np.ascontiguousarray(image)
     while b0 < len(ts_all) and not lost:
         ts = ts_all[b0 : b0 + size]
         pts = _offset_grid(ts, start, direction, *across)
-        vals = bilinear(image, to_px(pts)).reshape(len(ts), len(offs))
+        # (bilinear's kernel on the mapped points: one call, not bilinear's five)
+        px = np.ascontiguousarray(to_px(pts), dtype=np.float64)
+        vals = bilinear_points(image, px).reshape(len(ts), len(offs))
         cb, wb, kb = np.empty(len(ts)), np.empty(len(ts)), np.empty(len(ts), np.int64)
         count, expect, prev_w, missed, lost = _follow_batch(
             vals, offs, step_o, width, to_hub, expect, prev_w, missed, cb, wb, kb

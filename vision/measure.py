@@ -400,7 +400,7 @@ class Measurer:
         b_line[-1] = b_tip
         line_m = along_across(clamp, e, n, a_line, b_line)
         back = clamp + back_a * e
-        hub_px = cal.to_px(np.vstack([back, clamp]))
+        hub_px = cal.to_px(np.array([back, clamp]))
         return FrameMeasurement(
             ok=True,
             hub_angle_rad=float(math.atan2(e[1], e[0]) % (2 * math.pi)),
@@ -565,13 +565,21 @@ class Measurer:
         for edges in found:
             if len(edges.side_a) < 5:
                 raise FrameFailure("too few edge points (strip not visible)")
-            keep = edges.contrast > 0.35 * median(edges.contrast)
-            kept.append((edges.side_a[keep], edges.side_b[keep], edges.spread[keep]))
-        plane = self.calibration.to_plane(np.vstack([p for a, b, _ in kept for p in (a, b)]))
+            # the lines of more than 0.35 of the strip's median contrast
+            kept.append(
+                _strong_k(
+                    np.ascontiguousarray(edges.side_a, dtype=np.float64),
+                    np.ascontiguousarray(edges.side_b, dtype=np.float64),
+                    np.ascontiguousarray(edges.contrast, dtype=np.float64),
+                    np.ascontiguousarray(edges.spread, dtype=np.float64),
+                )
+            )
+        plane = self.calibration.to_plane(np.concatenate([p for p, _ in kept]))
         out, i = [], 0
-        for a, _b, spread in kept:
-            out.append((plane[i : i + len(a)], plane[i + len(a) : i + 2 * len(a)], spread))
-            i += 2 * len(a)
+        for _, spread in kept:
+            m = len(spread)
+            out.append((plane[i : i + m], plane[i + m : i + 2 * m], spread))
+            i += 2 * m
         return out
 
     def _scan(
@@ -784,13 +792,18 @@ class Measurer:
     ) -> tuple[float, float]:
         """The end face: along the centre line's tangent beyond the last edge points."""
         a_ref = amax
-        b_ref = float(centre(np.array([a_ref]))[0])
-        slope = float(centre.deriv(np.array([a_ref]))[0])
-        t = np.array([1.0, slope]) / math.hypot(1.0, slope)
-        tang = t[0] * e + t[1] * n
-        norm = np.array([-tang[1], tang[0]])
-        origin = clamp + a_ref * e + b_ref * n
-        lat = np.array([-0.2, 0.0, 0.2]) * w_beam
+        at = np.array([a_ref])
+        b_ref = float(centre(at)[0])
+        slope = float(centre.deriv(at)[0])
+        # (2-vectors as floats: numpy's element operations, without its calls)
+        h = math.hypot(1.0, slope)
+        t = (1.0 / h, slope / h)
+        e0, e1, n0, n1 = float(e[0]), float(e[1]), float(n[0]), float(n[1])
+        tx, ty = t[0] * e0 + t[1] * n0, t[0] * e1 + t[1] * n1
+        tang, norm = np.array([tx, ty]), np.array([-ty, tx])
+        c0, c1 = float(clamp[0]), float(clamp[1])
+        origin = np.array([c0 + a_ref * e0 + b_ref * n0, c1 + a_ref * e1 + b_ref * n1])
+        lat = np.array([-0.2 * w_beam, 0.0 * w_beam, 0.2 * w_beam])
         # The edge scans end 0.6 widths and 4 px short of the rough tip (``_scan``).
         dist = end_edge(
             image,
@@ -840,6 +853,33 @@ def _beam_frame_points(
     for i in range(m):
         diff[i] = ha[i, 1] - hb[i, 1]
     return ha[:m], hb[:m], amax, median_in_place(diff) < 0
+
+
+@kernel
+def _strong_k(
+    side_a: NDArray[np.float64],
+    side_b: NDArray[np.float64],
+    contrast: NDArray[np.float64],
+    spread: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:meth:`Measurer._strip_points`' choice of a strip's lines: those of contrast
+    above 0.35 of its median (:func:`~vision.sampling.median`'s), their side-a points
+    then their side-b points (2K, 2), and their ramp widths (K)."""
+    lim = 0.35 * median_in_place(contrast.copy())
+    n = contrast.shape[0]
+    m = 0
+    for i in range(n):
+        if contrast[i] > lim:
+            m += 1
+    pts, sp = np.empty((2 * m, 2)), np.empty(m)
+    k = 0
+    for i in range(n):
+        if contrast[i] > lim:
+            pts[k, 0], pts[k, 1] = side_a[i, 0], side_a[i, 1]
+            pts[m + k, 0], pts[m + k, 1] = side_b[i, 0], side_b[i, 1]
+            sp[k] = spread[i]
+            k += 1
+    return pts, sp
 
 
 @kernel

@@ -15,6 +15,7 @@ from vision.measure import (
     _columns,
     _kth,
     _scaled_polyval_k,
+    _strong_k,
     _vander_k,
 )
 
@@ -118,3 +119,17 @@ def test_the_small_forms_are_numpys_exactly() -> None:
             np.testing.assert_array_equal(_scaled_polyval_k(a, c, 0.83), want)
         d, e, nn = rng.normal(size=(n, 2)), rng.normal(size=2), rng.normal(size=2)
         np.testing.assert_array_equal(_columns(d, e, nn), np.column_stack([d @ e, d @ nn]))
+
+
+def test_the_strong_lines_are_the_numpy_forms() -> None:
+    """The strip's lines of more than 0.35 of its median contrast, their points and
+    ramp widths, as the numpy form chose them."""
+    rng = np.random.default_rng(19)
+    for n in (1, 2, 8, 501):
+        a, b = rng.normal(size=(n, 2)), rng.normal(size=(n, 2))
+        contrast, spread = rng.gamma(1.5, 30.0, n), rng.gamma(2.0, 1.0, n)
+        contrast[rng.random(n) < 0.1] = float(np.median(contrast)) * 0.35  # at the limit
+        keep = contrast > 0.35 * np.median(contrast)
+        pts, sp = _strong_k(a, b, contrast, spread)
+        np.testing.assert_array_equal(pts, np.vstack([a[keep], b[keep]]))
+        np.testing.assert_array_equal(sp, spread[keep])
