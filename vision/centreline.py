@@ -1686,15 +1686,8 @@ def _fit_joint_core(
         # The rows gathered row-major: each row's products then run over contiguous
         # memory (half the time of the column-major gather's strided rows).
         n_beam, p_shape = len(u), len(g_shape)
-        n_m = 2 + p_shape
-        x = np.empty((n_m + len(extra), n_beam))
-        x[0] = a_t[0, :n_beam]
-        x[1] = a_t[1, :n_beam]
-        x[2:n_m] = a_t[len(a_t) - p_shape :, :n_beam]
-        x[n_m:] = extra
-        kb = keep[:n_beam]
-        q, n_m = _orthonormalise(x.compress(kb, axis=1), n_m)
-        yb = b[:n_beam][kb]
+        x, yb = _test_rows_k(a_t, extra, keep, b, n_beam, p_shape)
+        q, n_m = _orthonormalise(x, 2 + p_shape)
         proj = q @ yb
         extra_proj = proj[n_m:]
         dof = len(extra_proj)
@@ -1702,6 +1695,47 @@ def _fit_joint_core(
         s2_u = max(rss_u, 1e-30) / max(n_kb - len(q), 1)
         chi2 = float(extra_proj @ extra_proj) / (s2_u * infl)
     return (0, coef, cov, tip_sd, n_kb, rms, hub_rms, free2, s2_free, inv22, infl, rho, chi2, dof)
+
+
+@kernel
+def _test_rows_k(
+    a_t: NDArray[np.float64],
+    extra: NDArray[np.float64],
+    keep: NDArray[np.bool_],
+    b: NDArray[np.float64],
+    n_beam: int,
+    p_shape: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_fit_joint_core`'s shape test's rows at the beam's inliers (``keep``'s
+    first ``n_beam``): the width's and the turn's rows of ``a_t``, its last ``p_shape``
+    (the shape's), then the ``extra`` rows; and the data ``b`` there (copies)."""
+    n_k = 0
+    for m in range(n_beam):
+        if keep[m]:
+            n_k += 1
+    n_a = a_t.shape[0]
+    n_m = 2 + p_shape
+    x = np.empty((n_m + extra.shape[0], n_k))
+    yb = np.empty(n_k)
+    for r in range(x.shape[0]):
+        if r < 2:
+            src = a_t[r]
+        elif r < n_m:
+            src = a_t[n_a - p_shape + r - 2]
+        else:
+            src = extra[r - n_m]
+        dst = x[r]
+        k = 0
+        for m in range(n_beam):
+            if keep[m]:
+                dst[k] = src[m]
+                k += 1
+    k = 0
+    for m in range(n_beam):
+        if keep[m]:
+            yb[k] = b[m]
+            k += 1
+    return x, yb
 
 
 @kernel
