@@ -58,6 +58,7 @@ class CentreLine:
         # generic machinery: this is built once per frame).
         self.dcoef = self.coef[1:] * np.arange(1, len(self.coef)) / self.amax
         self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
+        self._slopes: dict[float, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
     def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         return self._eval(a, True)
@@ -152,6 +153,7 @@ class ModalCentreLine:
         self.beam_length = float(beam_length)
         self.amax = float(amax)
         self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
+        self._slopes: dict[float, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
     @cached_property
     def _tables(self) -> tuple[NDArray[np.float64], ...]:
@@ -1127,8 +1129,25 @@ _ARC_SAMPLES = 801
 
 def arc_length(centre: CentreLine | ModalCentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
-    a = linspace(0.0, a_end, _ARC_SAMPLES)
-    return _arc_trapezoid_k(a, np.ascontiguousarray(centre.deriv(a), dtype=np.float64))
+    a, slope = _slope_samples(centre, a_end)
+    return _arc_trapezoid_k(a, slope)
+
+
+def _slope_samples(
+    centre: CentreLine | ModalCentreLine, a_end: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``a = linspace(0, a_end, _ARC_SAMPLES)`` and the centre line's slope there, kept
+    on ``centre`` by ``a_end``: a frame's arc length and its stations ask for the same
+    ones (a centre line is not changed after it is made; callers only read them, and
+    they stay writable so that the kernels given them compile for one kind of array)."""
+    got = centre._slopes.get(a_end)
+    if got is None:
+        if len(centre._slopes) >= 8:
+            centre._slopes.clear()
+        a = linspace(0.0, a_end, _ARC_SAMPLES)
+        slope = np.ascontiguousarray(centre.deriv(a), dtype=np.float64)
+        got = centre._slopes[a_end] = (a, slope)
+    return got
 
 
 @kernel
@@ -1151,8 +1170,8 @@ def stations_to_a(
     centre: CentreLine | ModalCentreLine, stations: NDArray[np.float64], a_end: float
 ) -> NDArray[np.float64]:
     """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
-    a = linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
-    return np.interp(stations, _cumulative_k(a, centre.deriv(a), True), a)
+    a, slope = _slope_samples(centre, max(a_end, float(stations.max()) + 0.01))
+    return np.interp(stations, _cumulative_k(a, slope, True), a)
 
 
 @kernel

@@ -400,7 +400,9 @@ class Measurer:
         b_line[-1] = b_tip
         line_m = along_across(clamp, e, n, a_line, b_line)
         back = clamp + back_a * e
-        hub_px = cal.to_px(np.array([back, clamp]))
+        # the centre line's and the hub's pixels in one mapping (point by point)
+        both_px = cal.to_px(np.concatenate([line_m, [back, clamp]]))
+        line_px, hub_px = both_px[:k], both_px[k:]
         return FrameMeasurement(
             ok=True,
             hub_angle_rad=float(math.atan2(e[1], e[0]) % (2 * math.pi)),
@@ -409,7 +411,7 @@ class Measurer:
             stations_m=self.stations_m.copy(),
             lateral_at_stations_m=np.asarray(lat_st, dtype=np.float64),
             centreline_plane_m=line_m,
-            centreline_px=cal.to_px(line_m),
+            centreline_px=line_px,
             hub_line_px=hub_px,
             clamp_plane_m=clamp,
             tip_plane_m=line_m[-1].copy(),

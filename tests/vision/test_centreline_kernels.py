@@ -786,3 +786,26 @@ def test_arc_length_is_numpys_trapezoid_exactly() -> None:
                 a = cl.linspace(0.0, end, cl._ARC_SAMPLES)
                 want = float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
                 assert cl.arc_length(centre, end) == want
+
+
+def test_arc_length_and_stations_share_their_slope_samples() -> None:
+    """The arc length and the stations' axis coordinates from the slope samples kept
+    on the centre line equal their fresh numpy forms, in either order, for ends the
+    stations lie within and beyond."""
+    rng = np.random.default_rng(14)
+    stations = np.array([0.005, 0.204, 0.403, 0.603])
+    for end in (0.8, 0.5):
+        for first in ("arc", "stations"):
+            centre = cl.CentreLine(rng.normal(0, 0.05, 9), 0.8)
+            a = cl.linspace(0.0, max(end, float(stations.max()) + 0.01), cl._ARC_SAMPLES)
+            y = np.sqrt(1.0 + centre.deriv(a) ** 2)
+            s = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(a))])
+            want_st = np.interp(stations, s, a)
+            a2 = cl.linspace(0.0, end, cl._ARC_SAMPLES)
+            want_arc = float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a2) ** 2), a2))
+            order = ("arc", "stations") if first == "arc" else ("stations", "arc")
+            for what in order:
+                if what == "arc":
+                    assert cl.arc_length(centre, end) == want_arc
+                else:
+                    np.testing.assert_array_equal(cl.stations_to_a(centre, stations, end), want_st)
