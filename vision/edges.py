@@ -154,19 +154,50 @@ def _scan_lines(
     # The scan-line index axis (x) and the position along the lines (y), each as one
     # contiguous array ordered along x.
     x, y = (centre_px[:, 0], centre_px[:, 1]) if columns else (centre_px[:, 1], centre_px[:, 0])
-    order = np.argsort(x)
-    x, y = x[order], y[order]
     hw = np.asarray(half_width_px, dtype=np.float64)
-    if hw.ndim == 0:
-        hw = np.full(len(x), float(hw))
-    else:
-        hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
+    ordered = False
+    if hw.shape == x.shape and x.dtype == np.float64 and len(x) > 1:
+        # x strictly monotonic (a strip's centre line along its scan-line axis): the
+        # one order any sort gives, taken without one (:func:`_monotonic_k`)
+        ordered, xs, ys, hs = _monotonic_k(x, y, hw)
+        if ordered:
+            x, y, hw = xs, ys, hs
+    if not ordered:
+        order = np.argsort(x)
+        x, y = x[order], y[order]
+        if hw.ndim == 0:
+            hw = np.full(len(x), float(hw))
+        else:
+            hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
     # Along-scan positions and scan-line indices (columns: rows and columns of the image).
     h, w = shape if columns else shape[::-1]
     lines, yc, half, top, reach = _line_geometry(x, y, hw, h, w, margin_px + max_window)
     if reach < 0 or not len(lines):
         return None
     return _Lines(columns, lines, yc, half, top, reach)
+
+
+@kernel
+def _monotonic_k(
+    x: NDArray[np.float64], y: NDArray[np.float64], hw: NDArray[np.float64]
+) -> tuple[bool, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``x``, ``y``, ``hw`` in the order of increasing ``x`` when ``x`` is strictly
+    increasing or strictly decreasing (copies, reversed for the latter); False (and
+    empties) otherwise, and for NaN."""
+    n = x.shape[0]
+    up, down = True, True
+    for i in range(n - 1):
+        if not x[i + 1] > x[i]:
+            up = False
+        if not x[i + 1] < x[i]:
+            down = False
+    if not (up or down):
+        return False, np.empty(0), np.empty(0), np.empty(0)
+    xs, ys, hs = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        j = i if up else n - 1 - i
+        xs[i], ys[i], hs[i] = x[j], y[j], hw[j]
+    return True, xs, ys, hs
 
 
 @kernel
