@@ -36,7 +36,7 @@ from numpy.polynomial import Legendre, Polynomial
 from numpy.typing import NDArray
 
 from vision.jit import kernel
-from vision.sampling import median, median_in_place
+from vision.sampling import median, median_in_place, numpy_sum
 
 #: Tukey biweight tuning constant (95 % efficiency under Gaussian noise), in robust sigmas.
 TUKEY_C = 4.685
@@ -58,6 +58,7 @@ class CentreLine:
         # generic machinery: this is built once per frame).
         self.dcoef = self.coef[1:] * np.arange(1, len(self.coef)) / self.amax
         self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
+        self._slopes: dict[float, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
     def __call__(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         return self._eval(a, True)
@@ -152,6 +153,7 @@ class ModalCentreLine:
         self.beam_length = float(beam_length)
         self.amax = float(amax)
         self._arc_maps: dict[float, ArcMap] = {}  # arc_map's, by end
+        self._slopes: dict[float, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
     @cached_property
     def _tables(self) -> tuple[NDArray[np.float64], ...]:
@@ -1127,16 +1129,49 @@ _ARC_SAMPLES = 801
 
 def arc_length(centre: CentreLine | ModalCentreLine, a_end: float) -> float:
     """Length of the centre line from the clamp to ``a_end`` (m)."""
-    a = linspace(0.0, a_end, _ARC_SAMPLES)
-    return float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
+    a, slope = _slope_samples(centre, a_end)
+    return _arc_trapezoid_k(a, slope)
+
+
+def _slope_samples(
+    centre: CentreLine | ModalCentreLine, a_end: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``a = linspace(0, a_end, _ARC_SAMPLES)`` and the centre line's slope there, kept
+    on ``centre`` by ``a_end``: a frame's arc length and its stations ask for the same
+    ones (a centre line is not changed after it is made; callers only read them, and
+    they stay writable so that the kernels given them compile for one kind of array)."""
+    got = centre._slopes.get(a_end)
+    if got is None:
+        if len(centre._slopes) >= 8:
+            centre._slopes.clear()
+        a = linspace(0.0, a_end, _ARC_SAMPLES)
+        slope = np.ascontiguousarray(centre.deriv(a), dtype=np.float64)
+        got = centre._slopes[a_end] = (a, slope)
+    return got
+
+
+@kernel
+def _arc_trapezoid_k(x: NDArray[np.float64], slope: NDArray[np.float64]) -> float:
+    """``np.trapezoid(np.sqrt(1.0 + slope**2), x)``: numpy's operations per interval,
+    ``diff(x) * (y[1:] + y[:-1]) / 2.0``, summed as numpy sums (:func:`numpy_sum`)."""
+    n = x.shape[0]
+    if n < 2:
+        return 0.0
+    v = np.empty(n - 1)
+    prev = math.sqrt(1.0 + slope[0] * slope[0])
+    for i in range(1, n):
+        cur = math.sqrt(1.0 + slope[i] * slope[i])
+        v[i - 1] = (x[i] - x[i - 1]) * (cur + prev) / 2.0
+        prev = cur
+    return numpy_sum(v, n - 1)
 
 
 def stations_to_a(
     centre: CentreLine | ModalCentreLine, stations: NDArray[np.float64], a_end: float
 ) -> NDArray[np.float64]:
     """Axis coordinate of the material points at arc lengths ``stations`` from the clamp."""
-    a = linspace(0.0, max(a_end, float(stations.max()) + 0.01), _ARC_SAMPLES)
-    return np.interp(stations, _cumulative_k(a, centre.deriv(a), True), a)
+    a, slope = _slope_samples(centre, max(a_end, float(stations.max()) + 0.01))
+    return np.interp(stations, _cumulative_k(a, slope, True), a)
 
 
 @kernel
@@ -1208,6 +1243,7 @@ def fit_clamped_joint(
     along: CentreLine | ModalCentreLine | None = None,
     edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
     inliers: NDArray[np.bool_] | None = None,
+    memo: PointsMemo | None = None,
 ) -> JointFit | str:
     """The hub's axis and the clamped centre line, fitted together.
 
@@ -1248,10 +1284,24 @@ def fit_clamped_joint(
     such a reference has no shape test and no free root slope (NaN: the fit whose
     inliers it takes checks its root).
 
+    ``memo``: a :class:`PointsMemo` shared by fits of the same beam points (``left``,
+    ``right`` and ``amax`` the same): what they compute from the points alone (the
+    shapes at them, the edges' slope, the modes' correction) is computed once.
+
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
     if modes <= 0:
         return _fit_joint(
-            left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, None, edge_slope, inliers
+            left,
+            right,
+            hub_a,
+            hub_b,
+            degree,
+            amax,
+            clamp_from_pivot,
+            None,
+            edge_slope,
+            inliers,
+            memo,
         )
     if not (math.isfinite(beam_length) and beam_length > 0):
         raise ValueError(f"beam_length must be positive with modes, got {beam_length!r}")
@@ -1266,6 +1316,8 @@ def fit_clamped_joint(
             clamp_from_pivot,
             _Modes(modes, beam_length, amax, None),
             edge_slope,
+            None,
+            memo,
         )
         if isinstance(first, str):
             return first
@@ -1283,6 +1335,64 @@ def fit_clamped_joint(
         shape,
         slope_fn,
         inliers,
+        memo,
+    )
+
+
+class PointsMemo:
+    """What :func:`fit_clamped_joint` computes from a set of beam points alone (the
+    polynomial's and the modes' shapes at them, the edges' slope there, the modes'
+    correction), kept for other fits of the same points (a modal fit's references:
+    the polynomial on its inliers, two more modes). Each entry is keyed by what it
+    depends on besides the points (the objects themselves held, so that a key's
+    ``id`` stays theirs); every array is the caller's to read, never to write."""
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple[Any, ...], tuple[Any, NDArray[np.float64]]] = {}
+
+    def get(
+        self, key: tuple[Any, ...], owner: Any, make: Callable[[], NDArray[np.float64]]
+    ) -> NDArray[np.float64]:
+        """The entry of ``key`` (``owner``: the object whose ``id`` the key holds, or
+        None), made by ``make`` the first time."""
+        hit = self._entries.get(key)
+        if hit is None or hit[0] is not owner:
+            hit = self._entries[key] = (owner, make())
+        return hit[1]
+
+    def modes(self, shape: _Modes, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``shape.basis_t(a)`` at the memo's points ``a``: a fit of more modes on the
+        same arc lengths computes only the modes it adds (each mode's row is computed
+        alone: the same values)."""
+        along = shape.along
+        base = (shape.beam_length, id(along))
+        x = self.get(("modes_x", *base), along, lambda: shape.modes_x(a))
+        key = ("modes", shape.n, *base)
+        hit = self._entries.get(key)
+        if hit is not None and hit[0] is along:
+            return hit[1]
+        have = [
+            k[1]
+            for k, v in self._entries.items()
+            if k[0] == "modes" and k[2:] == base and v[0] is along and k[1] < shape.n
+        ]
+        if have:
+            first = max(have)
+            rows = np.concatenate(
+                [self._entries[("modes", first, *base)][1], _modes_rows(x, first, shape.n)]
+            )
+        else:
+            rows = _modes_rows(x, 0, shape.n)
+        self._entries[key] = (along, rows)
+        return rows
+
+
+def _modes_rows(x: NDArray[np.float64], first: int, last: int) -> NDArray[np.float64]:
+    """Rows ``first .. last - 1`` of ``cantilever_modes_t(x, last)`` (each mode's row
+    from its own constants: the first modes' constants are the same for any count)."""
+    beta, sigma, big = _mode_constants(last)
+    return _modes_k(
+        np.ascontiguousarray(x, dtype=np.float64), beta[first:], sigma[first:], big[first:], 0
     )
 
 
@@ -1297,8 +1407,12 @@ class _Modes:
     along: ArcMap | None
 
     def basis_t(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return cantilever_modes_t(self.modes_x(a), self.n)
+
+    def modes_x(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The modes' argument ``s / L`` at axis coordinates ``a``."""
         s = a if self.along is None else self.along(a)
-        return cantilever_modes_t(s / self.beam_length, self.n)
+        return np.asarray(s / self.beam_length, dtype=np.float64)
 
     def correction(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.zeros_like(a) if self.along is None else self.along.correction(a)
@@ -1318,10 +1432,12 @@ def _fit_joint(
     modal: _Modes | None,
     edge_slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
     inliers: NDArray[np.bool_] | None = None,
+    memo: PointsMemo | None = None,
 ) -> JointFit | str:
     """:func:`fit_clamped_joint` in the polynomial (``modal`` None) or modal shape space:
-    the shapes, the edges' slope and the modes' correction at the beam's points here,
-    the design, the fit and its statistics in three kernels (:func:`_fit_joint_core`)."""
+    the shapes, the edges' slope and the modes' correction at the beam's points here
+    (from ``memo`` when given), the design, the fit and its statistics in three kernels
+    (:func:`_fit_joint_core`)."""
     nl, nr = len(left), len(right)
     use_hub = len(hub_a) >= 5 and len(hub_b) >= 5
     if not use_hub:
@@ -1333,19 +1449,38 @@ def _fit_joint(
     n_all = n_beam + len(hub_a) + len(hub_b)
     given = inliers is not None and len(inliers) == n_all
     keep = np.array(inliers, dtype=bool) if given else np.ones(n_all, dtype=bool)
+    if memo is None:
+        memo = PointsMemo()
+
+    def poly_shape() -> NDArray[np.float64]:
+        return _basis_t(a_beam / amax, degree)
+
     if modal is None:
-        shape = _basis_t(a_beam / amax, degree)
+        shape = memo.get(("poly", degree, amax), None, poly_shape)
         corr, extra, g_shape = _NO_VALUES, _NO_ROWS, _tip_gradient(degree)[2:]
     else:
-        shape = modal.basis_t(a_beam)
+        along = modal.along
+        shape = memo.modes(modal, a_beam)
         # The modes give the linear theory's deflection, int theta; an edge point lies
         # at int sin theta: the difference (~theta^3 / 6 per length, micrometres) added.
-        corr = _NO_VALUES if modal.along is None else modal.correction(a_beam)
+        corr = (
+            _NO_VALUES
+            if along is None
+            else memo.get(("corr", id(along)), along, lambda: along.correction(a_beam))
+        )
         # the shape test's extra shapes (none for a reference on another fit's inliers)
-        extra = _NO_ROWS if given else _basis_t(a_beam / amax, degree)
+        extra = _NO_ROWS if given else memo.get(("poly", degree, amax), None, poly_shape)
         g_shape = modal.basis_t(np.array([amax]))[:, 0]
     # Half the width along the normal: 1 / cos(theta) across the axis.
-    slope = _NO_VALUES if edge_slope is None else np.asarray(edge_slope(a_beam), dtype=np.float64)
+    slope = (
+        _NO_VALUES
+        if edge_slope is None
+        else memo.get(
+            ("slope", edge_slope),
+            None,
+            lambda: np.asarray(edge_slope(a_beam), dtype=np.float64),
+        )
+    )
     (
         status,
         coef,
@@ -1392,6 +1527,8 @@ def _fit_joint(
             clamp_from_pivot,
             modal,
             edge_slope,
+            None,
+            memo,
         )
     n_coef = len(coef)
     p_shape = len(g_shape)
@@ -1403,7 +1540,8 @@ def _fit_joint(
         g_tip, g_in = np.zeros(n_coef), np.zeros(n_coef)
         g_tip[n_coef - p_shape :] = g_shape
         if modal is None:
-            g_in[n_coef - p_shape :] = _basis(np.array([1.0 - h / amax]), degree)[0]
+            # (the kernel's recurrence: :func:`_basis`'s values, without legvander's calls)
+            g_in[n_coef - p_shape :] = _basis_t(np.array([1.0 - h / amax]), degree)[:, 0]
         else:
             g_in[n_coef - p_shape :] = modal.basis_t(np.array([amax - h]))[:, 0]
         g_slope = (g_tip - g_in) / h
@@ -1567,15 +1705,8 @@ def _fit_joint_core(
         # The rows gathered row-major: each row's products then run over contiguous
         # memory (half the time of the column-major gather's strided rows).
         n_beam, p_shape = len(u), len(g_shape)
-        n_m = 2 + p_shape
-        x = np.empty((n_m + len(extra), n_beam))
-        x[0] = a_t[0, :n_beam]
-        x[1] = a_t[1, :n_beam]
-        x[2:n_m] = a_t[len(a_t) - p_shape :, :n_beam]
-        x[n_m:] = extra
-        kb = keep[:n_beam]
-        q, n_m = _orthonormalise(x.compress(kb, axis=1), n_m)
-        yb = b[:n_beam][kb]
+        x, yb = _test_rows_k(a_t, extra, keep, b, n_beam, p_shape)
+        q, n_m = _orthonormalise(x, 2 + p_shape)
         proj = q @ yb
         extra_proj = proj[n_m:]
         dof = len(extra_proj)
@@ -1583,6 +1714,47 @@ def _fit_joint_core(
         s2_u = max(rss_u, 1e-30) / max(n_kb - len(q), 1)
         chi2 = float(extra_proj @ extra_proj) / (s2_u * infl)
     return (0, coef, cov, tip_sd, n_kb, rms, hub_rms, free2, s2_free, inv22, infl, rho, chi2, dof)
+
+
+@kernel
+def _test_rows_k(
+    a_t: NDArray[np.float64],
+    extra: NDArray[np.float64],
+    keep: NDArray[np.bool_],
+    b: NDArray[np.float64],
+    n_beam: int,
+    p_shape: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_fit_joint_core`'s shape test's rows at the beam's inliers (``keep``'s
+    first ``n_beam``): the width's and the turn's rows of ``a_t``, its last ``p_shape``
+    (the shape's), then the ``extra`` rows; and the data ``b`` there (copies)."""
+    n_k = 0
+    for m in range(n_beam):
+        if keep[m]:
+            n_k += 1
+    n_a = a_t.shape[0]
+    n_m = 2 + p_shape
+    x = np.empty((n_m + extra.shape[0], n_k))
+    yb = np.empty(n_k)
+    for r in range(x.shape[0]):
+        if r < 2:
+            src = a_t[r]
+        elif r < n_m:
+            src = a_t[n_a - p_shape + r - 2]
+        else:
+            src = extra[r - n_m]
+        dst = x[r]
+        k = 0
+        for m in range(n_beam):
+            if keep[m]:
+                dst[k] = src[m]
+                k += 1
+    k = 0
+    for m in range(n_beam):
+        if keep[m]:
+            yb[k] = b[m]
+            k += 1
+    return x, yb
 
 
 @kernel

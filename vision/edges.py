@@ -154,19 +154,50 @@ def _scan_lines(
     # The scan-line index axis (x) and the position along the lines (y), each as one
     # contiguous array ordered along x.
     x, y = (centre_px[:, 0], centre_px[:, 1]) if columns else (centre_px[:, 1], centre_px[:, 0])
-    order = np.argsort(x)
-    x, y = x[order], y[order]
     hw = np.asarray(half_width_px, dtype=np.float64)
-    if hw.ndim == 0:
-        hw = np.full(len(x), float(hw))
-    else:
-        hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
+    ordered = False
+    if hw.shape == x.shape and x.dtype == np.float64 and len(x) > 1:
+        # x strictly monotonic (a strip's centre line along its scan-line axis): the
+        # one order any sort gives, taken without one (:func:`_monotonic_k`)
+        ordered, xs, ys, hs = _monotonic_k(x, y, hw)
+        if ordered:
+            x, y, hw = xs, ys, hs
+    if not ordered:
+        order = np.argsort(x)
+        x, y = x[order], y[order]
+        if hw.ndim == 0:
+            hw = np.full(len(x), float(hw))
+        else:
+            hw = (hw if hw.shape == x.shape else np.broadcast_to(hw, x.shape))[order]
     # Along-scan positions and scan-line indices (columns: rows and columns of the image).
     h, w = shape if columns else shape[::-1]
     lines, yc, half, top, reach = _line_geometry(x, y, hw, h, w, margin_px + max_window)
     if reach < 0 or not len(lines):
         return None
     return _Lines(columns, lines, yc, half, top, reach)
+
+
+@kernel
+def _monotonic_k(
+    x: NDArray[np.float64], y: NDArray[np.float64], hw: NDArray[np.float64]
+) -> tuple[bool, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``x``, ``y``, ``hw`` in the order of increasing ``x`` when ``x`` is strictly
+    increasing or strictly decreasing (copies, reversed for the latter); False (and
+    empties) otherwise, and for NaN."""
+    n = x.shape[0]
+    up, down = True, True
+    for i in range(n - 1):
+        if not x[i + 1] > x[i]:
+            up = False
+        if not x[i + 1] < x[i]:
+            down = False
+    if not (up or down):
+        return False, np.empty(0), np.empty(0), np.empty(0)
+    xs, ys, hs = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        j = i if up else n - 1 - i
+        xs[i], ys[i], hs[i] = x[j], y[j], hw[j]
+    return True, xs, ys, hs
 
 
 @kernel
@@ -262,14 +293,15 @@ def _scan(
     lines = np.concatenate([g.lines for g in geos])
     sizes = [len(g.lines) for g in geos]
     n = len(lines)
-    bounds = np.cumsum([0, *sizes])
+    bounds = np.array(list(itertools.accumulate(sizes, initial=0)), dtype=np.intp)
     reaches = np.array([g.reach for g in geos], dtype=np.intp)
     levels = estimator in ("area", "erf")
+    tops = np.concatenate([g.top for g in geos])
     buf, peak, cen, step, ramp, lo2, hi2 = _scan_kernel(
         np.ascontiguousarray(image),
         columns,
         lines,
-        np.concatenate([g.top for g in geos]),
+        tops,
         np.concatenate([g.yc for g in geos]),
         np.concatenate([g.half for g in geos]),
         bounds,
@@ -280,7 +312,7 @@ def _scan(
         levels,
     )
     # Each line spans its own strip's 2 reach + 1 samples (see _scan_kernel).
-    pad, m = max_window, 2 * int(reaches.max()) + 1
+    pad, m = max_window, 2 * max(g.reach for g in geos) + 1
     prof2 = buf[:, pad : pad + m]
     if levels and estimator == "erf":
         # One edge width per strip and side (lines n.. are the falling sides).
@@ -289,17 +321,9 @@ def _scan(
     elif estimator == "gauss3":
         g = edge_gauss3(np.subtract(prof2[:, 1:], prof2[:, :-1]), peak)
         cen = np.where(np.isfinite(g), g, cen)
-    ca, cb = cen[:n], cen[n:]
-    # (x, y): the line index and the position along it, whichever axis each is.
-    line_axis, along_axis = (0, 1) if columns else (1, 0)
-    base = np.concatenate([g.top for g in geos]).astype(np.float64)
-    side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
-    side_a[:, line_axis] = side_b[:, line_axis] = lines
-    np.add(base, ca, out=side_a[:, along_axis])
-    np.add(base, cb, out=side_b[:, along_axis])
     contrast = np.minimum(step[:n], step[n:])
     spread = np.maximum(ramp[:n], ramp[n:])
-    good = np.isfinite(ca) & np.isfinite(cb) & (contrast > 0)
+    side_a, side_b, good = _sides_k(lines, tops, cen, contrast, columns)
     out = []
     for a, b in itertools.pairwise(bounds):
         k = good[a:b]
@@ -308,6 +332,31 @@ def _scan(
         else:
             out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
     return out
+
+
+@kernel
+def _sides_k(
+    lines: NDArray[np.intp],
+    tops: NDArray[np.intp],
+    cen: NDArray[np.float64],
+    contrast: NDArray[np.float64],
+    columns: bool,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """:func:`_scan`'s edge points (x, y) of both sides (``cen``: the rising sides'
+    positions along the lines, then the falling sides'): the line index and its first
+    sample's position plus the edge's, whichever axis each is; and which lines have
+    both edges (finite) and contrast."""
+    n = lines.shape[0]
+    la, aa = (0, 1) if columns else (1, 0)
+    side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
+    good = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        base = np.float64(tops[i])
+        side_a[i, la] = side_b[i, la] = np.float64(lines[i])
+        side_a[i, aa] = base + cen[i]
+        side_b[i, aa] = base + cen[n + i]
+        good[i] = np.isfinite(cen[i]) and np.isfinite(cen[n + i]) and contrast[i] > 0
+    return side_a, side_b, good
 
 
 #: The profiles' padding above their first sample (and its negation below the last).

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from vision.centreline import correlation_inflation, lag1_sums, linspace
 from vision.errors import FrameFailure
 from vision.jit import kernel
-from vision.locate import Rough, ToPx, _grid
+from vision.locate import Rough, ToPx
 from vision.sampling import bilinear_points, median_in_place, numpy_sum
 
 
@@ -329,7 +329,13 @@ def end_edge(
     the beam's tip."""
     step = 0.25 * px_m
     t = np.arange(guess - reach, guess + reach, step)
-    pts = _grid(lateral * n[0], lateral * n[1], origin[0] + t * e[0], origin[1] + t * e[1])
+    pts = _face_grid(
+        np.ascontiguousarray(lateral, dtype=np.float64),
+        np.ascontiguousarray(n, dtype=np.float64),
+        np.ascontiguousarray(origin, dtype=np.float64),
+        t,
+        np.ascontiguousarray(e, dtype=np.float64),
+    )
     px = np.ascontiguousarray(to_px(pts), dtype=np.float64)
     centre, total = _end_edge(np.ascontiguousarray(image), px, len(lateral), round(3.0 / 0.25))
     if total != total:  # NaN off the image
@@ -337,6 +343,27 @@ def end_edge(
     if not math.isfinite(centre) or total < 8.0:
         raise FrameFailure("no clear end edge (clamp or tip)")
     return float(t[0] + centre * step)
+
+
+@kernel
+def _face_grid(
+    lateral: NDArray[np.float64],
+    n: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    t: NDArray[np.float64],
+    e: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`end_edge`'s sample points (K * M, 2), line by line: ``lateral_k n +
+    (origin + t_j e)``, as :func:`~vision.locate._grid` of the numpy arrays
+    ``lateral * n`` and ``origin + t * e`` (the same products and sums)."""
+    m = t.size
+    out = np.empty((lateral.size * m, 2))
+    for k in range(lateral.size):
+        x, y = lateral[k] * n[0], lateral[k] * n[1]
+        for j in range(m):
+            out[k * m + j, 0] = x + (origin[0] + t[j] * e[0])
+            out[k * m + j, 1] = y + (origin[1] + t[j] * e[1])
+    return out
 
 
 @kernel

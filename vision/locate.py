@@ -25,7 +25,16 @@ from numpy.typing import NDArray
 
 from vision.errors import FrameFailure
 from vision.jit import kernel
-from vision.sampling import BilinearPlan, bilinear, median, median_in_place, numpy_sum, select_kth
+from vision.sampling import (
+    BilinearPlan,
+    along_across,
+    bilinear,
+    bilinear_points,
+    median,
+    median_in_place,
+    numpy_sum,
+    select_kth,
+)
 
 ToPx = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -594,7 +603,7 @@ def locate(
             f"{lo * 1e3:.1f} .. {hi * 1e3:.0f} mm wide crossing both circles about the pivot)"
         )
     p1, p2, w0 = found
-    d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
+    d0 = _unit(p2 - p1)
     w_out = outward_width(w0, beam_width)
     outward = _follow(
         image, to_px, p2, d0, w_out, follow_half_width(w_out), beam_length * 0.7, px_m, 2.5
@@ -618,25 +627,19 @@ def locate(
     if len(widths_in):
         shown = min(shown_out, median(widths_in[:3]))
     w_beam = working_width(shown, beam_width)
-    wide = np.flatnonzero(widths_in > _HUB_WIDENING * w_beam)
-    if wide.size < 2:
+    # The hub: from the first profile wider than the beam by _HUB_WIDENING (two at
+    # least), while the width stays near its median; it ends at the first two widths
+    # in a row that disagree (one noisy width is not the end): :func:`_hub_run`.
+    n_wide, k0, med, keep, last = _hub_run(
+        np.ascontiguousarray(widths_in, dtype=np.float64), _HUB_WIDENING * w_beam
+    )
+    if n_wide < 2:
         raise FrameFailure(
             f"no hub found (the {shown * 1e3:.1f} mm strip does not widen toward the pivot)"
         )
-    k0 = int(wide[0])
     clamp = pts_in[k0 - 1] if k0 > 0 else pts_in[0]
     clamp = 0.5 * (clamp + pts_in[k0])
     hub_pts = pts_in[k0:]
-    hub_w = widths_in[k0:]
-    # The hub continues while the width stays near its median.
-    med = median(hub_w)
-    keep = np.abs(hub_w - med) < 0.25 * med
-    # The hub ends at the first two widths in a row that disagree (one noisy width is
-    # not the end).
-    bad2 = ~keep[:-1] & ~keep[1:]
-    last = int(np.argmax(bad2)) if bad2.any() else len(keep)
-    while last > 0 and not keep[last - 1]:
-        last -= 1
     if last < 2:
         raise FrameFailure("no hub found (too short)")
     hub_back = hub_pts[last - 1]
@@ -644,6 +647,46 @@ def locate(
     beam = np.vstack([beam_in, p1[None, :], outward[0]])
     tip = _strip_end(image, to_px, beam, w_beam, px_m)
     return Rough(beam, clamp, hub_back, med, tip, hub_pts[:last][keep[:last]], w_beam)
+
+
+@kernel
+def _hub_run(
+    widths: NDArray[np.float64], wider: float
+) -> tuple[int, int, float, NDArray[np.bool_], int]:
+    """:func:`locate`'s hub along the inward profiles' ``widths``: how many are wider
+    than ``wider`` and the first of them ``k0``; from it on (the hub's widths), their
+    median, which of them lie within a quarter of it (``keep``), and where the hub ends
+    (``last``: before the first two in a row that do not, less the kept run's
+    trailing misses). (NaN widths are never wider; a NaN among the hub's makes its
+    median NaN, as numpy's.)"""
+    n_wide, k0 = 0, -1
+    for i in range(widths.size):
+        if widths[i] > wider:
+            if n_wide == 0:
+                k0 = i
+            n_wide += 1
+    if n_wide < 2:
+        return n_wide, k0, math.nan, np.zeros(0, dtype=np.bool_), 0
+    hub_w = widths[k0:]
+    med = median_in_place(hub_w.copy())
+    n = hub_w.size
+    keep = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        keep[i] = abs(hub_w[i] - med) < 0.25 * med
+    last = n
+    for i in range(n - 1):
+        if not keep[i] and not keep[i + 1]:
+            last = i
+            break
+    while last > 0 and not keep[last - 1]:
+        last -= 1
+    return n_wide, k0, med, keep, last
+
+
+def _unit(d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``d / np.linalg.norm(d)`` of a float64 vector: the norm as numpy computes it,
+    ``sqrt(d.dot(d))``, without its generic checks."""
+    return d / math.sqrt(float(d.dot(d)))
 
 
 def _strip_end(
@@ -655,8 +698,7 @@ def _strip_end(
 ) -> NDArray[np.float64]:
     """Where the strip ends beyond the last tracked point (half-brightness crossing)."""
     last = beam[-1]
-    d = last - beam[max(0, len(beam) - 3)]
-    d /= np.linalg.norm(d)
+    d = _unit(last - beam[max(0, len(beam) - 3)])
     t = np.arange(-width, 4.0 * width, 0.5 * px_m)
     v = bilinear(image, to_px(last[None, :] + t[:, None] * d[None, :]))
     k = _strip_end_at(v, int(width / (0.5 * px_m)))
@@ -727,10 +769,13 @@ def _follow(
     lost = False
     missed = False
     b0, size, more = 0, _FOLLOW_BATCH, iter(_FOLLOW_MORE)
+    image = np.ascontiguousarray(image)
     while b0 < len(ts_all) and not lost:
         ts = ts_all[b0 : b0 + size]
-        pts = _grid(start[0] + ts * direction[0], start[1] + ts * direction[1], *across)
-        vals = bilinear(image, to_px(pts)).reshape(len(ts), len(offs))
+        pts = _offset_grid(ts, start, direction, *across)
+        # (bilinear's kernel on the mapped points: one call, not bilinear's five)
+        px = np.ascontiguousarray(to_px(pts), dtype=np.float64)
+        vals = bilinear_points(image, px).reshape(len(ts), len(offs))
         cb, wb, kb = np.empty(len(ts)), np.empty(len(ts)), np.empty(len(ts), np.int64)
         count, expect, prev_w, missed, lost = _follow_batch(
             vals, offs, step_o, width, to_hub, expect, prev_w, missed, cb, wb, kb
@@ -744,8 +789,27 @@ def _follow(
     if not len(cs):
         return np.zeros((0, 2)), np.zeros(0)
     ts = ts_all[np.concatenate(at)]
-    out = (start[None, :] + ts[:, None] * direction[None, :]) + cs[:, None] * n[None, :]
-    return out, np.concatenate(widths)
+    return along_across(start, direction, n, ts, cs), np.concatenate(widths)
+
+
+@kernel
+def _offset_grid(
+    t: NDArray[np.float64],
+    start: NDArray[np.float64],
+    direction: NDArray[np.float64],
+    dx: NDArray[np.float64],
+    dy: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`_grid` of the points ``start + t direction`` (K) and the offsets (dx, dy)
+    (M): ``(start + t_k direction) + d_j``, the sums as numpy's arrays gave them."""
+    out = np.empty((t.size * dx.size, 2))
+    for k in range(t.size):
+        x = start[0] + t[k] * direction[0]
+        y = start[1] + t[k] * direction[1]
+        for j in range(dx.size):
+            out[k * dx.size + j, 0] = x + dx[j]
+            out[k * dx.size + j, 1] = y + dy[j]
+    return out
 
 
 @kernel

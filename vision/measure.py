@@ -39,6 +39,8 @@ from vision.centreline import (
     CentreLine,
     JointFit,
     ModalCentreLine,
+    PointsMemo,
+    _polyval_k,
     arc_length,
     fit_clamped_joint,
     linspace,
@@ -51,7 +53,7 @@ from vision.hub import back_face, clamp_face, end_edge, hub_axis, rough_axis
 from vision.jit import kernel
 from vision.locate import Rough, locate, search_circles
 from vision.paper_chain import measure_paper
-from vision.sampling import bilinear, median, median_in_place
+from vision.sampling import along_across, bilinear, median, median_in_place, select_kth
 
 log = logging.getLogger(__name__)
 
@@ -205,7 +207,7 @@ class Measurer:
             raise TypeError(f"image_gray must be a numpy array, got {type(image_gray).__name__}")
         if image_gray.ndim != 2 or image_gray.dtype != np.uint8 or min(image_gray.shape) < 16:
             return self._fail(f"not a uint8 gray [row, col] image (shape {image_gray.shape})")
-        if float(image_gray[::16, ::16].std()) < 2.0:
+        if _blank(image_gray):
             return self._fail("blank frame (no contrast)")
         try:
             if self.method == "paper":
@@ -258,7 +260,7 @@ class Measurer:
         blur = median(spread)
         smear_px = 0.0
         k90 = int(0.9 * (len(spread) - 1))
-        tip_blur = float(np.partition(spread, k90)[k90])  # the 90th percentile
+        tip_blur = _kth(spread, k90)  # the 90th percentile
         if blur <= self.max_blur_px and tip_blur > _TIP_BLUR_FACTOR * self.max_blur_px:
             # A beam swinging about its root smears most toward its tip: a sharp root
             # and an outer tenth smeared beyond the edges' reach. Its edges there are
@@ -396,9 +398,11 @@ class Measurer:
         a_line = linspace(0.0, a_tip, k)
         b_line = centre(a_line)
         b_line[-1] = b_tip
-        line_m = clamp[None, :] + a_line[:, None] * e[None, :] + b_line[:, None] * n[None, :]
+        line_m = along_across(clamp, e, n, a_line, b_line)
         back = clamp + back_a * e
-        hub_px = cal.to_px(np.vstack([back, clamp]))
+        # the centre line's and the hub's pixels in one mapping (point by point)
+        both_px = cal.to_px(np.concatenate([line_m, [back, clamp]]))
+        line_px, hub_px = both_px[:k], both_px[k:]
         return FrameMeasurement(
             ok=True,
             hub_angle_rad=float(math.atan2(e[1], e[0]) % (2 * math.pi)),
@@ -407,7 +411,7 @@ class Measurer:
             stations_m=self.stations_m.copy(),
             lateral_at_stations_m=np.asarray(lat_st, dtype=np.float64),
             centreline_plane_m=line_m,
-            centreline_px=cal.to_px(line_m),
+            centreline_px=line_px,
             hub_line_px=hub_px,
             clamp_plane_m=clamp,
             tip_plane_m=line_m[-1].copy(),
@@ -452,6 +456,9 @@ class Measurer:
         for _ in range(4):
             d_clamp = float(clamp @ e)
             la, lb, ha, hb, amax = self._frame(pa, pb, hub_a, hub_b, d_clamp, e, hub_w, length)
+            # what the fits of these points compute from them alone, kept for the
+            # references below
+            memo = PointsMemo()
             res = fit_clamped_joint(
                 la,
                 lb,
@@ -464,6 +471,7 @@ class Measurer:
                 beam_length=length,
                 along=poly.fit.centre,
                 edge_slope=poly.fit.centre.deriv if edges else None,
+                memo=memo,
             )
             if isinstance(res, str):
                 return None
@@ -490,6 +498,7 @@ class Measurer:
             d_clamp,
             edge_slope=poly.fit.centre.deriv if edges else None,
             inliers=joint.inliers,
+            memo=memo,
         )
         ref = refit()
         if isinstance(ref, str):
@@ -558,13 +567,21 @@ class Measurer:
         for edges in found:
             if len(edges.side_a) < 5:
                 raise FrameFailure("too few edge points (strip not visible)")
-            keep = edges.contrast > 0.35 * median(edges.contrast)
-            kept.append((edges.side_a[keep], edges.side_b[keep], edges.spread[keep]))
-        plane = self.calibration.to_plane(np.vstack([p for a, b, _ in kept for p in (a, b)]))
+            # the lines of more than 0.35 of the strip's median contrast
+            kept.append(
+                _strong_k(
+                    np.ascontiguousarray(edges.side_a, dtype=np.float64),
+                    np.ascontiguousarray(edges.side_b, dtype=np.float64),
+                    np.ascontiguousarray(edges.contrast, dtype=np.float64),
+                    np.ascontiguousarray(edges.spread, dtype=np.float64),
+                )
+            )
+        plane = self.calibration.to_plane(np.concatenate([p for p, _ in kept]))
         out, i = [], 0
-        for a, _b, spread in kept:
-            out.append((plane[i : i + len(a)], plane[i + len(a) : i + 2 * len(a)], spread))
-            i += 2 * len(a)
+        for _, spread in kept:
+            m = len(spread)
+            out.append((plane[i : i + m], plane[i + m : i + 2 * m], spread))
+            i += 2 * m
         return out
 
     def _scan(
@@ -602,7 +619,7 @@ class Measurer:
             raise FrameFailure("beam too short in view")
         aq = linspace(a0, a1, max(20, int((a1 - a0) / (2 * self.px_m))))
         bq = np.interp(aq, a, b)
-        beam_line = clamp[None, :] + aq[:, None] * e[None, :] + bq[:, None] * n[None, :]
+        beam_line = along_across(clamp, e, n, aq, bq)
         if not with_hub:
             ((pa, pb, spread),) = self._strip_points(image, [(beam_line, 0.5 * w_beam)])
             return None, (pa, pb), spread
@@ -730,11 +747,10 @@ class Measurer:
         )
         if len(la) < 5 or amax < 0.3 * length:
             raise FrameFailure("beam too short in view")
-        amax = float(max(amax, lb[:, 0].max()))
+        amax = float(max(amax, np.maximum.reduce(lb[:, 0])))
         n = np.array([-ey, ex])
-        da, db = hub_a - np.array([ox, oy]), hub_b - np.array([ox, oy])
-        ha = np.column_stack([da @ e, da @ n])
-        hb = np.column_stack([db @ e, db @ n])
+        o = np.array([ox, oy])
+        ha, hb = _columns(hub_a - o, e, n), _columns(hub_b - o, e, n)
         if swap:
             la, lb = lb, la
         return la, lb, ha, hb, amax
@@ -778,13 +794,18 @@ class Measurer:
     ) -> tuple[float, float]:
         """The end face: along the centre line's tangent beyond the last edge points."""
         a_ref = amax
-        b_ref = float(centre(np.array([a_ref]))[0])
-        slope = float(centre.deriv(np.array([a_ref]))[0])
-        t = np.array([1.0, slope]) / math.hypot(1.0, slope)
-        tang = t[0] * e + t[1] * n
-        norm = np.array([-tang[1], tang[0]])
-        origin = clamp + a_ref * e + b_ref * n
-        lat = np.array([-0.2, 0.0, 0.2]) * w_beam
+        at = np.array([a_ref])
+        b_ref = float(centre(at)[0])
+        slope = float(centre.deriv(at)[0])
+        # (2-vectors as floats: numpy's element operations, without its calls)
+        h = math.hypot(1.0, slope)
+        t = (1.0 / h, slope / h)
+        e0, e1, n0, n1 = float(e[0]), float(e[1]), float(n[0]), float(n[1])
+        tx, ty = t[0] * e0 + t[1] * n0, t[0] * e1 + t[1] * n1
+        tang, norm = np.array([tx, ty]), np.array([-ty, tx])
+        c0, c1 = float(clamp[0]), float(clamp[1])
+        origin = np.array([c0 + a_ref * e0 + b_ref * n0, c1 + a_ref * e1 + b_ref * n1])
+        lat = np.array([-0.2 * w_beam, 0.0 * w_beam, 0.2 * w_beam])
         # The edge scans end 0.6 widths and 4 px short of the rough tip (``_scan``).
         dist = end_edge(
             image,
@@ -834,6 +855,33 @@ def _beam_frame_points(
     for i in range(m):
         diff[i] = ha[i, 1] - hb[i, 1]
     return ha[:m], hb[:m], amax, median_in_place(diff) < 0
+
+
+@kernel
+def _strong_k(
+    side_a: NDArray[np.float64],
+    side_b: NDArray[np.float64],
+    contrast: NDArray[np.float64],
+    spread: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:meth:`Measurer._strip_points`' choice of a strip's lines: those of contrast
+    above 0.35 of its median (:func:`~vision.sampling.median`'s), their side-a points
+    then their side-b points (2K, 2), and their ramp widths (K)."""
+    lim = 0.35 * median_in_place(contrast.copy())
+    n = contrast.shape[0]
+    m = 0
+    for i in range(n):
+        if contrast[i] > lim:
+            m += 1
+    pts, sp = np.empty((2 * m, 2)), np.empty(m)
+    k = 0
+    for i in range(n):
+        if contrast[i] > lim:
+            pts[k, 0], pts[k, 1] = side_a[i, 0], side_a[i, 1]
+            pts[m + k, 0], pts[m + k, 1] = side_b[i, 0], side_b[i, 1]
+            sp[k] = spread[i]
+            k += 1
+    return pts, sp
 
 
 @kernel
@@ -890,6 +938,38 @@ def _background_slope(
     return np.asarray(basis @ coef, dtype=np.float64)
 
 
+#: A frame is blank when the standard deviation of every 16th pixel of every 16th row
+#: is below this (DN; an integer: its square is compared exactly).
+_BLANK_STD = 2
+
+
+def _blank(image: NDArray[np.uint8]) -> bool:
+    """Whether ``image[::16, ::16].std() < _BLANK_STD``: decided from the samples'
+    exact integer sums (:func:`_coarse_sums`; numpy's float ``std`` of them is a
+    twentieth of a frame's measurement), and by numpy's own ``std`` where the exact
+    variance lies within 1e-9 of the limit's square, where its rounding could decide."""
+    n, s1, s2 = _coarse_sums(image)
+    # n^2 var = n s2 - s1^2, in Python's integers (exact)
+    limit = _BLANK_STD * _BLANK_STD * n * n
+    gap = n * int(s2) - int(s1) * int(s1) - limit
+    if abs(gap) * 10**9 <= limit or n > 10**7:
+        return float(image[::16, ::16].std()) < _BLANK_STD
+    return gap < 0
+
+
+@kernel
+def _coarse_sums(image: NDArray[np.uint8]) -> tuple[int, int, int]:
+    """The count, sum and sum of squares of ``image[::16, ::16]`` (integers: exact)."""
+    h, w = image.shape
+    s1, s2 = 0, 0
+    for i in range(0, h, 16):
+        for j in range(0, w, 16):
+            v = int(image[i, j])
+            s1 += v
+            s2 += v * v
+    return ((h + 15) // 16) * ((w + 15) // 16), s1, s2
+
+
 def _rough_slope(
     rough: Rough, clamp: NDArray[np.float64], e: NDArray[np.float64]
 ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
@@ -899,20 +979,81 @@ def _rough_slope(
     n = np.array([-e[1], e[0]])
     rel = rough.beam - clamp
     a, b = rel @ e, rel @ n
-    scale = max(float(np.max(np.abs(a))), 1e-6)
+    scale = max(float(np.maximum.reduce(np.abs(a))), 1e-6)  # (np.max's reduction)
     deg = min(4, max(len(a) - 2, 0))
     if deg < 1:
         return lambda q: np.zeros_like(np.asarray(q, dtype=np.float64))
     # Least squares by the normal equations (a quartic in a / scale on [0, 1]: well
     # conditioned; a tenth of polyfit's SVD).
-    vand = np.vander(a / scale, deg + 1, increasing=True)
+    vand = _vander_k(np.ascontiguousarray(a / scale), deg + 1)
     coef = np.linalg.solve(vand.T @ vand, vand.T @ b)
-    der = coef[1:] * np.arange(1, deg + 1)
+    der = np.ascontiguousarray(coef[1:] * np.arange(1, deg + 1), dtype=np.float64)
 
     def slope(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.asarray(np.polynomial.polynomial.polyval(np.asarray(q) / scale, der) / scale)
+        # polyval(q / scale, der) / scale (:func:`_scaled_polyval_k`)
+        x = np.ascontiguousarray(q, dtype=np.float64)
+        return _scaled_polyval_k(x.reshape(-1), der, scale).reshape(x.shape)
 
     return slope
+
+
+@kernel
+def _vander_k(x: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    """``np.vander(x, n, increasing=True)`` of float64 ``x``: 1, x, then each power the
+    last times x (numpy's ``multiply.accumulate``)."""
+    out = np.empty((x.shape[0], n))
+    for i in range(x.shape[0]):
+        if n > 0:
+            out[i, 0] = 1.0
+        if n > 1:
+            out[i, 1] = x[i]
+        for k in range(2, n):
+            out[i, k] = out[i, k - 1] * x[i]
+    return out
+
+
+@kernel
+def _scaled_polyval_k(
+    q: NDArray[np.float64], c: NDArray[np.float64], scale: float
+) -> NDArray[np.float64]:
+    """``np.polynomial.polynomial.polyval(q / scale, c) / scale`` point by point
+    (:func:`~vision.centreline._polyval_k`: Horner's rule as numpy runs it)."""
+    out = np.empty(q.shape[0])
+    for i in range(q.shape[0]):
+        out[i] = _polyval_k(c, q[i] / scale) / scale
+    return out
+
+
+def _columns(
+    d: NDArray[np.float64], e: NDArray[np.float64], n: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """``np.column_stack([d @ e, d @ n])`` of points ``d`` (N, 2), without its
+    wrapper's calls (the products stay numpy's: BLAS rounds them its own way)."""
+    out = np.empty((len(d), 2))
+    out[:, 0] = d @ e
+    out[:, 1] = d @ n
+    return out
+
+
+def _kth(x: NDArray[np.float64], k: int) -> float:
+    """``np.partition(x, k)[k]`` of a float64 vector: its k-th smallest value, NaN where
+    k reaches the NaNs numpy sorts last (:func:`_kth_k`)."""
+    return float(_kth_k(np.ascontiguousarray(x, dtype=np.float64), k))
+
+
+@kernel
+def _kth_k(x: NDArray[np.float64], k: int) -> float:
+    """:func:`_kth`: the finite values' (and infinities') k-th by selection on a copy."""
+    w = np.empty(x.shape[0])
+    m = 0
+    for i in range(x.shape[0]):
+        if x[i] == x[i]:
+            w[m] = x[i]
+            m += 1
+    if k >= m:
+        return math.nan
+    select_kth(w, k, m)
+    return w[k]
 
 
 def _clear_of_faces(

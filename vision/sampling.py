@@ -144,6 +144,41 @@ def _block_sum(a: NDArray[np.float64], lo: int, n: int) -> float:
     return res
 
 
+def along_across(
+    origin: NDArray[np.float64],
+    u: NDArray[np.float64],
+    v: NDArray[np.float64],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Points (N, 2) ``origin + a u + b v`` for the coordinates ``a``, ``b`` (N) along the
+    2-vectors ``u`` and ``v``: numpy's ``origin[None, :] + a[:, None] * u[None, :] +
+    b[:, None] * v[None, :]`` in one call, its operations in its order (:func:`_along_k`)."""
+    return _along_k(
+        np.ascontiguousarray(origin, dtype=np.float64),
+        np.ascontiguousarray(u, dtype=np.float64),
+        np.ascontiguousarray(v, dtype=np.float64),
+        np.ascontiguousarray(a, dtype=np.float64),
+        np.ascontiguousarray(b, dtype=np.float64),
+    )
+
+
+@kernel
+def _along_k(
+    origin: NDArray[np.float64],
+    u: NDArray[np.float64],
+    v: NDArray[np.float64],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`along_across`: ``(origin + a u) + b v``, each product and sum rounded."""
+    out = np.empty((a.shape[0], 2))
+    for i in range(a.shape[0]):
+        for j in range(2):
+            out[i, j] = (origin[j] + a[i] * u[j]) + b[i] * v[j]
+    return out
+
+
 def bilinear(image: NDArray[np.uint8], xy: NDArray[np.float64]) -> NDArray[np.float64]:
     """Bilinear samples of a [row, col] image at points (N, 2) (x, y); NaN off the image."""
     xy = np.asarray(xy, dtype=np.float64)

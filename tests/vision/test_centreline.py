@@ -484,3 +484,55 @@ def test_arc_maps_are_kept_per_centre_line_and_end() -> None:
             np.testing.assert_array_equal(getattr(got, name), getattr(fresh, name))
     assert arc_map(straight, 0.8).s[-1] < first.s[-1]  # the bent line is the longer
     assert arc_map(bent, 0.7).a[-1] < first.a[-1]
+
+
+def _same_fit(a, b) -> None:
+    """Two :class:`JointFit` results equal bit for bit (their numbers and centre lines)."""
+    assert not isinstance(a, str) and not isinstance(b, str)
+    for name in ("rotation_rad", "rotation_sd_rad", "hub_width", "hub_offset", "hub_rms"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    np.testing.assert_array_equal(a.shape_chi2, b.shape_chi2)
+    np.testing.assert_array_equal(a.inliers, b.inliers)
+    for name in ("width", "rms", "tip_sd", "root_slope_rad", "edge_rho", "outlier_fraction"):
+        np.testing.assert_array_equal(getattr(a.fit, name), getattr(b.fit, name))
+    at = np.linspace(0.0, 0.85, 37)
+    np.testing.assert_array_equal(a.fit.centre(at), b.fit.centre(at))
+    np.testing.assert_array_equal(a.fit.centre.deriv(at), b.fit.centre.deriv(at))
+    np.testing.assert_array_equal(a.fit.extrapolation_var(0.02), b.fit.extrapolation_var(0.02))
+
+
+def test_fits_sharing_a_points_memo_are_the_fits_without_it() -> None:
+    """A modal fit and its references (the polynomial on its inliers, two more modes)
+    sharing a :class:`PointsMemo` of their points give what each gives alone, bit for
+    bit (the more-modes fit computes only the modes it adds)."""
+    from vision.centreline import PointsMemo, cantilever_modes_t
+
+    rng = np.random.default_rng(21)
+    for k in range(3):
+        pose = _load_pose(rng)
+        left, right, _ = _material_edges(pose, rng, 3e-5)
+        ha, hb = _hub_edges(rng, 3e-5, length_m=0.2, n=80) if k else (np.zeros((0, 2)),) * 2
+        poly = fit_clamped_joint(left, right, ha, hb, 8, 0.81, CLAMP_M)
+        assert not isinstance(poly, str)
+        along, slope = poly.fit.centre, poly.fit.centre.deriv
+        kw = {"along": along, "edge_slope": slope, "beam_length": L_M}
+        memo = PointsMemo()
+        modal = fit_clamped_joint(left, right, ha, hb, 8, 0.81, CLAMP_M, modes=4, memo=memo, **kw)
+        _same_fit(modal, fit_clamped_joint(left, right, ha, hb, 8, 0.81, CLAMP_M, modes=4, **kw))
+        assert not isinstance(modal, str)
+        ref_kw = {"edge_slope": slope, "inliers": modal.inliers}
+        ref = fit_clamped_joint(left, right, ha, hb, 8, 0.81, CLAMP_M, memo=memo, **ref_kw)
+        _same_fit(ref, fit_clamped_joint(left, right, ha, hb, 8, 0.81, CLAMP_M, **ref_kw))
+        more_kw = {**kw, "inliers": modal.inliers}
+        more = fit_clamped_joint(
+            left, right, ha, hb, 8, 0.81, CLAMP_M, modes=6, memo=memo, **more_kw
+        )
+        _same_fit(
+            more, fit_clamped_joint(left, right, ha, hb, 8, 0.81, CLAMP_M, modes=6, **more_kw)
+        )
+    # six modes from four and two: the same rows as six at once
+    x = np.linspace(0.0, 1.1, 501)
+    np.testing.assert_array_equal(
+        np.concatenate([cantilever_modes_t(x, 4), cantilever_modes_t(x, 6)[4:]]),
+        cantilever_modes_t(x, 6),
+    )

@@ -187,6 +187,15 @@ def test_basis_kernel_is_numpys_legendre_recurrence_exactly() -> None:
             np.testing.assert_array_equal(cl._basis_t(u, degree), _basis_t_ref(u, degree))
 
 
+def test_basis_kernel_is_the_legvander_basis_exactly() -> None:
+    # (the fit's end covariance takes its one-point basis from the kernel)
+    rng = np.random.default_rng(12)
+    for degree in (2, 3, 5, 8, 11):
+        for n in (1, 7, 1333):
+            u = rng.uniform(-0.1, 1.2, n)
+            np.testing.assert_array_equal(cl._basis_t(u, degree), cl._basis(u, degree).T)
+
+
 def test_lu_kernels_solve_and_invert_as_numpy_does() -> None:
     rng = np.random.default_rng(5)
     for k in (1, 2, 6, 11):
@@ -763,3 +772,40 @@ def test_hub_straightness_kernel_against_the_numpy_form() -> None:
         assert rho == pytest.approx(want_rho, rel=1e-9, abs=1e-12), k
         if k % 3 == 0 and min(na, nb) > 40 and k % 4:
             assert rho > 0.9, (k, rho)
+
+
+def test_arc_length_is_numpys_trapezoid_exactly() -> None:
+    """The arc length's kernel against ``np.trapezoid`` of ``sqrt(1 + slope^2)``, for a
+    polynomial centre line and a modal one, over several ends."""
+    rng = np.random.default_rng(13)
+    for _ in range(5):
+        poly = cl.CentreLine(rng.normal(0, 0.05, 9), 0.8)
+        modal = cl.ModalCentreLine(rng.normal(0, 0.02, 4), 0.835, 0.8)
+        for centre in (poly, modal):
+            for end in (0.3, 0.8, 0.86):
+                a = cl.linspace(0.0, end, cl._ARC_SAMPLES)
+                want = float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a) ** 2), a))
+                assert cl.arc_length(centre, end) == want
+
+
+def test_arc_length_and_stations_share_their_slope_samples() -> None:
+    """The arc length and the stations' axis coordinates from the slope samples kept
+    on the centre line equal their fresh numpy forms, in either order, for ends the
+    stations lie within and beyond."""
+    rng = np.random.default_rng(14)
+    stations = np.array([0.005, 0.204, 0.403, 0.603])
+    for end in (0.8, 0.5):
+        for first in ("arc", "stations"):
+            centre = cl.CentreLine(rng.normal(0, 0.05, 9), 0.8)
+            a = cl.linspace(0.0, max(end, float(stations.max()) + 0.01), cl._ARC_SAMPLES)
+            y = np.sqrt(1.0 + centre.deriv(a) ** 2)
+            s = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(a))])
+            want_st = np.interp(stations, s, a)
+            a2 = cl.linspace(0.0, end, cl._ARC_SAMPLES)
+            want_arc = float(np.trapezoid(np.sqrt(1.0 + centre.deriv(a2) ** 2), a2))
+            order = ("arc", "stations") if first == "arc" else ("stations", "arc")
+            for what in order:
+                if what == "arc":
+                    assert cl.arc_length(centre, end) == want_arc
+                else:
+                    np.testing.assert_array_equal(cl.stations_to_a(centre, stations, end), want_st)

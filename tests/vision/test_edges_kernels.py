@@ -330,3 +330,28 @@ def test_scan_lines_are_the_numpy_lines() -> None:
             assert (got.columns, got.reach) == (want.columns, want.reach)
             for f in ("lines", "yc", "half", "top"):
                 np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
+
+
+def test_a_monotonic_lines_order_is_argsorts() -> None:
+    """The scan lines' order without a sort, where the centre line's x is strictly
+    monotonic, is argsort's; anything else (ties, turns, NaN) is left to argsort."""
+    from vision.edges import _monotonic_k
+
+    rng = np.random.default_rng(23)
+    for n in (2, 3, 40, 600):
+        x = np.cumsum(rng.uniform(0.1, 2.0, n))
+        y, hw = rng.normal(size=n), rng.uniform(5, 20, n)
+        for xx in (x, x[::-1].copy()):
+            pts = np.column_stack([xx, y])  # strided columns, as the scan passes them
+            ok, xs, ys, hs = _monotonic_k(pts[:, 0], pts[:, 1], hw)
+            order = np.argsort(xx)
+            assert ok
+            np.testing.assert_array_equal(xs, xx[order])
+            np.testing.assert_array_equal(ys, y[order])
+            np.testing.assert_array_equal(hs, hw[order])
+        for k in range(3):
+            bad = x.copy()
+            i = int(rng.integers(0, n - 1))
+            bad[i + 1] = bad[i] if k == 0 else (bad[i] - 0.5 if k == 1 else math.nan)
+            if n > 2 or k != 1:
+                assert not _monotonic_k(bad, y, hw)[0]

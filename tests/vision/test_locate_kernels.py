@@ -21,6 +21,9 @@ from vision.locate import (
     _circle_candidates,
     _extreme_wrap,
     _follow_batch,
+    _grid,
+    _hub_run,
+    _offset_grid,
     _strip_end_at,
     _uniform_wrap,
     find_strip,
@@ -168,3 +171,57 @@ def test_the_strip_ends_where_the_numpy_form_ends_it() -> None:
         assert got == strip_end_numpy(v, inside), k
         ends.add(min(got, 1))
     assert ends == {-1, 1}
+
+
+def _hub_run_numpy(widths, wider):
+    """locate's hub run in its former numpy form (None: fewer than two wide)."""
+    wide = np.flatnonzero(widths > wider)
+    if wide.size < 2:
+        return None
+    k0 = int(wide[0])
+    hub_w = widths[k0:]
+    med = float(np.median(hub_w))
+    keep = np.abs(hub_w - med) < 0.25 * med
+    bad2 = ~keep[:-1] & ~keep[1:]
+    last = int(np.argmax(bad2)) if bad2.any() else len(keep)
+    while last > 0 and not keep[last - 1]:
+        last -= 1
+    return k0, med, keep, last
+
+
+def test_the_hub_run_is_the_numpy_forms() -> None:
+    """The hub's start, median width, kept widths and end as the numpy form found them,
+    on widths that widen, wander, step off and back, tie at the limit, or hold NaN."""
+    rng = np.random.default_rng(8)
+    for trial in range(400):
+        n = int(rng.integers(0, 40))
+        w = rng.choice([0.02, 0.05], size=n) * (1.0 + 0.2 * rng.standard_normal(n))
+        if trial % 5 == 0 and n:
+            w[rng.integers(0, n)] = 0.03  # at the limit: not wider
+        if trial % 7 == 0 and n:
+            w[rng.integers(0, n)] = math.nan
+        if trial % 3 == 0:
+            w = np.sort(w)  # a clean run of hub widths after the beam's
+        want = _hub_run_numpy(w, 0.03)
+        n_wide, k0, med, keep, last = _hub_run(w, 0.03)
+        if want is None:
+            assert n_wide < 2
+            continue
+        assert (k0, last) == (want[0], want[3])
+        np.testing.assert_array_equal(med, want[1])
+        np.testing.assert_array_equal(keep, want[2])
+
+
+def test_the_grids_are_the_numpy_forms() -> None:
+    """The follow's and the end faces' sample grids against ``_grid`` of the numpy
+    arrays they replace, bit for bit."""
+    from vision.hub import _face_grid
+
+    rng = np.random.default_rng(9)
+    for k, m in ((1, 1), (3, 17), (16, 40)):
+        t, off = rng.normal(size=k) * 0.3, rng.normal(size=m) * 0.01
+        p, d, n = rng.normal(size=2), rng.normal(size=2), rng.normal(size=2)
+        want = _grid(p[0] + t * d[0], p[1] + t * d[1], off * n[0], off * n[1])
+        np.testing.assert_array_equal(_offset_grid(t, p, d, off * n[0], off * n[1]), want)
+        want = _grid(off * n[0], off * n[1], p[0] + t * d[0], p[1] + t * d[1])
+        np.testing.assert_array_equal(_face_grid(off, n, p, t, d), want)

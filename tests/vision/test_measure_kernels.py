@@ -10,7 +10,14 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from vision.measure import _beam_frame_points
+from vision.measure import (
+    _beam_frame_points,
+    _columns,
+    _kth,
+    _scaled_polyval_k,
+    _strong_k,
+    _vander_k,
+)
 
 
 def _beam_frame_numpy(pa, pb, clamp, e, n, a0):  # type: ignore[no-untyped-def]
@@ -89,3 +96,40 @@ def test_the_strip_offsets_are_the_numpy_forms() -> None:
     halves = np.array([h for _, h in strips])
     got = _offsets_k(np.vstack(lines), sizes, halves)
     np.testing.assert_array_equal(got, want)
+
+
+def test_the_small_forms_are_numpys_exactly() -> None:
+    """The 90th percentile's selection (NaN sorted last, as np.partition), the rough
+    slope's Vandermonde matrix and scaled polynomial, and the hub points' columns, bit
+    for bit against the numpy calls they replace."""
+    rng = np.random.default_rng(17)
+    for n in (1, 2, 9, 300):
+        x = rng.gamma(2.0, 2.0, n)
+        x[rng.random(n) < 0.2] = rng.choice(x)  # ties
+        if n > 2:
+            x[rng.integers(0, n)] = math.nan
+        for k in {0, n // 2, int(0.9 * (n - 1)), n - 1}:
+            np.testing.assert_array_equal(_kth(x, k), np.partition(x, k)[k])
+        a = rng.uniform(-0.2, 1.1, n)
+        for m in (1, 2, 5):
+            np.testing.assert_array_equal(_vander_k(a, m), np.vander(a, m, increasing=True))
+        for deg in (1, 4):
+            c = rng.normal(size=deg)
+            want = np.polynomial.polynomial.polyval(a / 0.83, c) / 0.83
+            np.testing.assert_array_equal(_scaled_polyval_k(a, c, 0.83), want)
+        d, e, nn = rng.normal(size=(n, 2)), rng.normal(size=2), rng.normal(size=2)
+        np.testing.assert_array_equal(_columns(d, e, nn), np.column_stack([d @ e, d @ nn]))
+
+
+def test_the_strong_lines_are_the_numpy_forms() -> None:
+    """The strip's lines of more than 0.35 of its median contrast, their points and
+    ramp widths, as the numpy form chose them."""
+    rng = np.random.default_rng(19)
+    for n in (1, 2, 8, 501):
+        a, b = rng.normal(size=(n, 2)), rng.normal(size=(n, 2))
+        contrast, spread = rng.gamma(1.5, 30.0, n), rng.gamma(2.0, 1.0, n)
+        contrast[rng.random(n) < 0.1] = float(np.median(contrast)) * 0.35  # at the limit
+        keep = contrast > 0.35 * np.median(contrast)
+        pts, sp = _strong_k(a, b, contrast, spread)
+        np.testing.assert_array_equal(pts, np.vstack([a[keep], b[keep]]))
+        np.testing.assert_array_equal(sp, spread[keep])

@@ -11,7 +11,14 @@ import pytest
 
 from tests.vision.sampling_numpy import bilinear_numpy
 from vision.errors import ParameterError
-from vision.sampling import BilinearPlan, bilinear, median, median_in_place, numpy_sum
+from vision.sampling import (
+    BilinearPlan,
+    along_across,
+    bilinear,
+    median,
+    median_in_place,
+    numpy_sum,
+)
 
 
 def test_bilinear_is_the_numpy_form_bit_for_bit() -> None:
@@ -80,3 +87,14 @@ def test_median_in_place_is_numpys_median_on_sorted_reversed_and_equal_values(n:
         x = rng.standard_normal(n)
         x[n // 3] = math.nan
         assert math.isnan(median_in_place(x))
+
+
+def test_along_across_is_numpys_broadcast_expression_exactly() -> None:
+    rng = np.random.default_rng(3)
+    for n in (0, 1, 5, 1001):
+        o, u, v = rng.normal(size=2), rng.normal(size=2), rng.normal(size=2)
+        a, b = rng.normal(size=n) * 0.7, rng.normal(size=n) * 1e-3
+        want = o[None, :] + a[:, None] * u[None, :] + b[:, None] * v[None, :]
+        got = along_across(o, u, v, a, b)
+        assert got.shape == (n, 2)
+        np.testing.assert_array_equal(got, want)
