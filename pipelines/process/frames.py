@@ -23,6 +23,7 @@ import math
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -131,10 +132,17 @@ class StartedWorkers:
     (:func:`start_workers`): the fork server spends its first second or so importing
     numpy, OpenCV and vision and loading the kernels (each spawned worker, where there is
     no fork server), which then overlaps the reading of the log. Hand it to
-    :func:`measure_frames` (which then owns it), or :meth:`close` it."""
+    :func:`measure_frames` (which then owns it), or :meth:`close` it.
+
+    The workers are asked for in a thread of their own (``starter``): a pool's first
+    worker is only handed over once the fork server has done its imports, and this
+    process reads the log meanwhile instead of waiting for them."""
 
     def __init__(
-        self, pool: ProcessPoolExecutor, n_workers: int, kernels_cached: bool = True
+        self,
+        pool: ProcessPoolExecutor,
+        n_workers: int,
+        kernels_cached: bool = True,
     ) -> None:
         self.pool: ProcessPoolExecutor | None = pool
         self.n_workers = n_workers
@@ -142,9 +150,24 @@ class StartedWorkers:
         # the calibration may have compiled a few of them, so the cache is no longer
         # empty while most of the measurement's kernels are still to be compiled
         self.kernels_cached = kernels_cached
+        self._starter: threading.Thread | None = None  # set by start_workers
+        self.start_error: OSError | None = None  # set by the starter when it failed
+
+    def join(self) -> StartedWorkers:
+        """Wait until every worker was asked for (the fork server's imports done)."""
+        if self._starter is not None:
+            self._starter.join()
+            self._starter = None
+        return self
 
     def take(self) -> ProcessPoolExecutor | None:
+        """The pool, once its workers were asked for; None when they could not be
+        started (:func:`measure_frames` then tries again, and says why it cannot)."""
+        self.join()
         pool, self.pool = self.pool, None
+        if pool is not None and self.start_error is not None:
+            _abandon(pool)
+            return None
         return pool
 
     def close(self) -> None:
@@ -190,23 +213,30 @@ def _new_pool(n_workers: int) -> ProcessPoolExecutor:
 
 
 def start_workers(workers: int | None = None) -> StartedWorkers | None:
-    """``workers`` (default: one a core) frame-measuring processes, started now; None
-    for one worker (the frames are then measured in this process) or when they cannot
-    be started (:func:`measure_frames` then tries again, and says why it cannot)."""
+    """``workers`` (default: one a core) frame-measuring processes, being started from
+    now on (in a thread: :class:`StartedWorkers`); None for one worker (the frames are
+    then measured in this process) or when they cannot be started (:func:`measure_frames`
+    then tries again, and says why it cannot)."""
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     if n_workers <= 1 or _cannot_spawn() is not None:
         return None
     cached = kernels_cached()
-    pool = None
     try:
         pool = _new_pool(n_workers)
-        for _ in range(n_workers):  # the pool starts a worker per task waiting
-            pool.submit(_ready)
     except OSError:
-        if pool is not None:
-            _abandon(pool)
         return None
-    return StartedWorkers(pool, n_workers, cached)
+    started = StartedWorkers(pool, n_workers, cached)
+
+    def ask() -> None:
+        try:
+            for _ in range(n_workers):  # the pool starts a worker per task waiting
+                pool.submit(_ready)
+        except OSError as exc:
+            started.start_error = exc
+
+    started._starter = threading.Thread(target=ask, name="frame-workers-start", daemon=True)
+    started._starter.start()
+    return started
 
 
 def measure_frames(

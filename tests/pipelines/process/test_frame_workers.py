@@ -269,7 +269,7 @@ def test_workers_stopped_while_starting_leave_the_executor_finished() -> None:
     for _ in range(3):
         started = start_workers(2)
         assert started is not None and started.pool is not None
-        pool: Any = started.pool  # the executor's internals, untyped here
+        pool: Any = started.join().pool  # the executor's internals, untyped here
         call_queue, manager = pool._call_queue, pool._executor_manager_thread
         started.close()
         assert not manager.is_alive()
@@ -387,3 +387,43 @@ def test_workers_leave_ctrl_c_to_the_main_process() -> None:
     finally:
         started.close()
     assert not _sigint_ignored()  # this process's own Ctrl-C is untouched
+
+
+class _SlowPool:
+    """An executor whose workers are handed over only when ``go`` is set (a fork server
+    still importing), or never (``fail``: they cannot start)."""
+
+    def __init__(self, fail: bool = False) -> None:
+        import threading
+
+        self.go = threading.Event()
+        self.fail = fail
+        self.asked = 0
+        self.stopped = False
+
+    def submit(self, fn: Any) -> None:
+        self.go.wait(timeout=60)
+        if self.fail:
+            raise OSError("no worker could start")
+        self.asked += 1
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        self.stopped = True
+
+
+def test_starting_the_workers_does_not_wait_for_them(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the fork server hands a pool its first worker only after its imports (~1 s): the
+    # run reads its log meanwhile, so start_workers returns at once and take() waits
+    pool = _SlowPool()
+    monkeypatch.setattr(frames_module, "_new_pool", lambda n: pool)
+    started = frames_module.start_workers(2)
+    assert started is not None and pool.asked == 0  # returned while the server imports
+    pool.go.set()
+    assert started.take() is pool and pool.asked == 2
+    # workers that could not start: the pool is stopped and measure_frames starts its own
+    failing = _SlowPool(fail=True)
+    monkeypatch.setattr(frames_module, "_new_pool", lambda n: failing)
+    started = frames_module.start_workers(2)
+    assert started is not None
+    failing.go.set()
+    assert started.take() is None and failing.stopped
