@@ -29,6 +29,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import cv2
 import numpy as np
@@ -496,37 +497,34 @@ def _put_segments(
             seg_w // 8,
         )
         return
-    dst = canvas.ravel()
-    src = pixels.ravel()
-    dst_w = np.uint64(canvas.shape[1])
-    src_w = np.uint64(pixels.shape[1])
-    width = np.uint64(seg_w)
-    for j in range(at.size):
-        r0 = at[j] // per_row * seg_h
-        c0 = at[j] % per_row * seg_w
-        pr = j // across * seg_h
-        pc = j % across * seg_w
-        for y in range(seg_h):
-            a = np.uint64(r0 + y) * dst_w + np.uint64(c0)
-            b = np.uint64(pr + y) * src_w + np.uint64(pc)
-            for x in range(width):
-                dst[a + x] = src[b + x]
+    _put_words(
+        canvas.ravel(),
+        canvas.shape[1],
+        per_row,
+        at,
+        pixels.ravel(),
+        pixels.shape[1],
+        across,
+        seg_h,
+        seg_w,
+    )
 
 
 @kernel
 def _put_words(
-    dst: NDArray[np.uint64],
+    dst: NDArray[Any],
     dst_w: int,
     per_row: int,
     at: NDArray[np.intp],
-    src: NDArray[np.uint64],
+    src: NDArray[Any],
     src_w: int,
     across: int,
     seg_h: int,
     seg_w: int,
 ) -> None:
-    """:func:`_put_segments` on the images as flat arrays of 8-byte words, ``dst_w``,
-    ``src_w`` and ``seg_w`` of them to a row."""
+    """:func:`_put_segments` on the images as flat arrays of words (8-byte words, or
+    bytes where the widths are no multiple of 8), ``dst_w``, ``src_w`` and ``seg_w`` of
+    them to a row."""
     row_d = np.uint64(dst_w)
     row_s = np.uint64(src_w)
     width = np.uint64(seg_w)
