@@ -418,14 +418,17 @@ def _spliced(
 
 
 def _decoded(
-    layout: JpegLayout, segments: NDArray[np.intp]
+    layout: JpegLayout, segments: NDArray[np.intp], reduction: int = 1
 ) -> Iterator[tuple[NDArray[np.intp], NDArray[np.uint8], int]]:
-    """The given segments decoded, as ``(segments', pixels, across)`` per splice: each
-    splice's rows hold ``across`` segments side by side (about :data:`_ROW_PX` wide: the
+    """The given segments decoded (at 1/``reduction``: 1, or 2, 4, 8 by libjpeg's DCT
+    scaling), as ``(segments', pixels, across)`` per splice: each splice's rows hold
+    ``across`` segments side by side (about :data:`_ROW_PX` wide at full size: the
     decoder's cost per output line, not per segment, is what narrow segments one to a
     row pay for), the last row filled up with its last segment again; ``segments'`` in
     the pixels' order, so padded too."""
+    flags = cv2.IMREAD_GRAYSCALE if reduction == 1 else _REDUCED_FLAGS[reduction]
     seg_w, seg_h = layout.segment_px
+    out_w, out_h = seg_w // reduction, seg_h // reduction
     segments = np.asarray(segments, dtype=np.intp)
     across = max(1, _ROW_PX // seg_w)
     per_splice = _max_segments(layout) * across
@@ -435,9 +438,8 @@ def _decoded(
         pad = -len(part) % a
         if pad:
             part = np.concatenate((part, np.full(pad, part[-1], dtype=np.intp)))
-        rows = len(part) // a
-        img = _imdecode(_splice(layout, part, a))
-        if img.shape != (rows * seg_h, a * seg_w):
+        img = _imdecode(_splice(layout, part, a), flags)
+        if img.shape != (len(part) // a * out_h, a * out_w):
             raise DecodeError(len(layout.data))
         yield part, img, a
 
@@ -710,20 +712,8 @@ def decode_reduced_into(
     if canvas.shape != shape or canvas.dtype != np.uint8 or not canvas.flags.c_contiguous:
         raise ParameterError("canvas", f"must be a C-contiguous uint8 array of {shape}")
     seg_w, seg_h = layout.segment_px
-    out_w, out_h = seg_w // reduction, seg_h // reduction
-    segments = np.asarray(segments, dtype=np.intp)
-    across = max(1, _ROW_PX // seg_w)
-    per_splice = _max_segments(layout) * across
-    for k in range(0, len(segments), per_splice):
-        part = segments[k : k + per_splice]
-        a = min(across, len(part))
-        pad = -len(part) % a
-        if pad:  # the last row filled up with its last segment again
-            part = np.concatenate((part, np.full(pad, part[-1], dtype=np.intp)))
-        img = _imdecode(_splice(layout, part, a), _REDUCED_FLAGS[reduction])
-        if img.shape != (len(part) // a * out_h, a * out_w):
-            raise DecodeError(len(layout.data))
-        _put_segments(canvas, layout.per_row, part, img, a, out_h, out_w)
+    for part, img, a in _decoded(layout, segments, reduction):
+        _put_segments(canvas, layout.per_row, part, img, a, seg_h // reduction, seg_w // reduction)
 
 
 def replaced_segments(layout: JpegLayout, segments: NDArray[np.intp], other: JpegLayout) -> bytes:
