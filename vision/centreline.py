@@ -1289,54 +1289,27 @@ def fit_clamped_joint(
     shapes at them, the edges' slope, the modes' correction) is computed once.
 
     Returns a :class:`JointFit`, or the reason (str) when the edges cannot carry it."""
-    if modes <= 0:
+
+    def fit(
+        shape: _Modes | None,
+        slope: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None,
+        taken: NDArray[np.bool_] | None,
+    ) -> JointFit | str:
         return _fit_joint(
-            left,
-            right,
-            hub_a,
-            hub_b,
-            degree,
-            amax,
-            clamp_from_pivot,
-            None,
-            edge_slope,
-            inliers,
-            memo,
+            left, right, hub_a, hub_b, degree, amax, clamp_from_pivot, shape, slope, taken, memo
         )
+
+    if modes <= 0:
+        return fit(None, edge_slope, inliers)
     if not (math.isfinite(beam_length) and beam_length > 0):
         raise ValueError(f"beam_length must be positive with modes, got {beam_length!r}")
     if along is None:
-        first = _fit_joint(
-            left,
-            right,
-            hub_a,
-            hub_b,
-            degree,
-            amax,
-            clamp_from_pivot,
-            _Modes(modes, beam_length, amax, None),
-            edge_slope,
-            None,
-            memo,
-        )
+        first = fit(_Modes(modes, beam_length, amax, None), edge_slope, None)
         if isinstance(first, str):
             return first
         along = first.fit.centre
     shape = _Modes(modes, beam_length, amax, arc_map(along, amax))
-    slope_fn = along.deriv if edge_slope is not None else None
-    return _fit_joint(
-        left,
-        right,
-        hub_a,
-        hub_b,
-        degree,
-        amax,
-        clamp_from_pivot,
-        shape,
-        slope_fn,
-        inliers,
-        memo,
-    )
+    return fit(shape, along.deriv if edge_slope is not None else None, inliers)
 
 
 class PointsMemo:
