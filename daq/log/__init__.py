@@ -18,7 +18,14 @@ from daq.log.format import (
     TOPIC_SAMPLES,
     TOPICS,
 )
-from daq.log.reader import ChannelStats, RunLog, iter_frames, read_run, scan_log
+from daq.log.reader import (
+    ChannelStats,
+    RunLog,
+    iter_frames,
+    opens_as_log,
+    read_run,
+    scan_log,
+)
 from daq.log.recover import RecoverySummary, recover_log
 from daq.log.summary import ChannelSummary, LogSummary, summarize_log
 from daq.log.writer import LogWriter
@@ -40,6 +47,7 @@ __all__ = [
     "RecoverySummary",
     "RunLog",
     "iter_frames",
+    "opens_as_log",
     "read_run",
     "recover_log",
     "scan_log",

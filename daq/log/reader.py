@@ -154,6 +154,20 @@ def _open(
     return f, reader, summary
 
 
+def opens_as_log(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` opens as a beambench log: the magic, the profile, the footer and
+    the summary (its CRC), without the data section's CRC (milliseconds, where reading
+    the log takes a second a bench minute). For a caller that starts work ahead of the
+    read (``process`` starts its frame workers): a file refused here is refused by
+    :func:`read_run` at once, with its reason, and nothing need be started for it."""
+    try:
+        f, _, _ = _open(path, verify_data=False)
+    except LogError:
+        return False
+    f.close()
+    return True
+
+
 def _check_footer(p: Path, f: IO[bytes], size: int) -> int:
     """Check the footer and the summary CRC; return where the data section's DataEnd
     record ends (the summary's start, or the footer's when there is no summary).

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from daq.log import LogError, iter_frames, read_run
+from daq.log import LogError, iter_frames, opens_as_log, read_run
 from pipelines import __version__
 from pipelines.errors import BeambenchError
 from pipelines.process.alignment import Alignment, estimate_offset
@@ -338,8 +338,9 @@ def process_run(
     were measured (``Processed.failures``; none measured is the caller's error)."""
     # the frame workers start now: each imports numpy, OpenCV and vision (a second or
     # more) while this process reads the log, which then takes no wall time of its own
-    # (a path that is no file is refused at once, with none started)
-    started = start_workers(workers) if Path(log_path).is_file() else None
+    # (a path that is no log, or a log cut short, is refused at once, with none started:
+    # stopping workers half started waits for the fork server's imports, ~0.8 s)
+    started = start_workers(workers) if opens_as_log(log_path) else None
     try:
         return _process_run(
             log_path, rig, calibration_path, model, sim_tol, workers, damping_law,

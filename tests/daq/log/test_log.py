@@ -16,6 +16,7 @@ from daq.log import (
     LogError,
     LogWriter,
     iter_frames,
+    opens_as_log,
     read_run,
     recover_log,
     scan_log,
@@ -296,6 +297,33 @@ def test_other_mcap_profiles_are_not_beambench_logs(tmp_path: Path) -> None:
         w.finish()
     with pytest.raises(LogError, match="not a beambench log"):
         read_run(path)
+
+
+def test_opens_as_log_refuses_what_read_run_refuses_at_its_start(tmp_path: Path) -> None:
+    """The quick check before a read (``process`` starts its workers only for a file that
+    passes it): a whole log passes; a cut one, another file, another profile or a folder
+    does not, and read_run refuses each of them too."""
+    from mcap.writer import Writer
+
+    rng = np.random.default_rng(5)
+    path = tmp_path / "run.mcap"
+    _write(path, [_samples(0, 400, rng)], [], [])
+    assert opens_as_log(path)
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:-40])
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"hello world, not a log at all")
+    ros = tmp_path / "ros.mcap"
+    with open(ros, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="x")
+        w.finish()
+    for refused in (cut, junk, ros, tmp_path / "missing.mcap", tmp_path):
+        assert not opens_as_log(refused)
+        with pytest.raises(LogError):
+            read_run(refused)
+    assert path.read_bytes() == data  # read only
 
 
 def test_recover_restores_every_flushed_message_at_any_cut(tmp_path: Path) -> None:

@@ -427,3 +427,20 @@ def test_starting_the_workers_does_not_wait_for_them(monkeypatch: pytest.MonkeyP
     assert started is not None
     failing.go.set()
     assert started.take() is None and failing.stopped
+
+
+def test_a_file_that_is_no_log_starts_no_workers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # stopping workers half started waits for the fork server's imports (~0.8 s): a
+    # file that does not open as a log is refused before any is started
+    from pipelines.errors import BeambenchError
+    from pipelines.process import run as run_module
+
+    asked: list[int | None] = []
+    monkeypatch.setattr(run_module, "start_workers", lambda n=None: asked.append(n))
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not a log")
+    with pytest.raises(BeambenchError, match=r"junk\.mcap: not an MCAP file"):
+        run_module.process_run(junk, workers=2)
+    assert asked == []
