@@ -10,8 +10,6 @@ from __future__ import annotations
 import argparse
 import importlib
 
-HELP = "print speed against error for the simulator, vision, acquisition or processing"
-
 TARGETS = ("sim", "vision", "daq", "process", "campaign")
 
 

@@ -17,8 +17,6 @@ from pipelines.commands._args import (
 from pipelines.errors import BeambenchError
 from sim.models.registry import MODELS
 
-HELP = "process many runs on a Dask cluster; write a results file per run and DIR/campaign.nc"
-
 EXIT_SOME_FAILED = 1
 
 

@@ -14,8 +14,6 @@ from pipelines.paths import check_writable_output, refuse_aliases
 from pipelines.progress import Progress
 from pipelines.rig import Rig
 
-HELP = "record a run (DAQ + camera) to a synchronized MCAP log"
-
 # Work is bounded before it starts (the error names the estimated cost):
 MAX_CAPTURE_S = 4 * 3600.0  # a long session at the bench
 # the synthetic bench simulates the whole run up front and renders every frame (~55 ms a

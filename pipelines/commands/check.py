@@ -8,8 +8,6 @@ from pathlib import Path
 from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
 
-HELP = "preflight: camera, registration, beam, bridges, potentiometer, exposure (pass/warn/fail)"
-
 EXIT_FAILED_CHECK = 1
 
 

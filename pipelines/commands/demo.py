@@ -16,8 +16,6 @@ from pipelines.commands._args import add_rig_argument, rig_from_args
 from pipelines.errors import BeambenchError
 from pipelines.paths import refuse_inputs_among
 
-HELP = "synthetic bench end to end: capture, process, report"
-
 DEMO_DURATION_S = 20.0
 
 

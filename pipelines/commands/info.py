@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "channels, counts, rates, gaps and duration of a run log"
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("log", metavar="RUN.mcap")

@@ -15,8 +15,6 @@ from pipelines.errors import BeambenchError
 if TYPE_CHECKING:
     from vision import FrameMeasurement
 
-HELP = "measure hub angle and tip deflection in still images"
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("images", metavar="IMAGE", nargs="+")

@@ -18,8 +18,6 @@ from pipelines.errors import BeambenchError
 from pipelines.paths import check_writable_output, refuse_aliases, write_failed
 from sim.models.registry import MODELS
 
-HELP = "measure frames, reconstruct, simulate and compare a run; write RESULTS.nc"
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("log", metavar="RUN.mcap")

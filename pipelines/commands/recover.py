@@ -8,11 +8,6 @@ from pathlib import Path
 from pipelines.errors import BeambenchError
 from pipelines.paths import refuse_aliases
 
-HELP = (
-    "restore every flushed message of a broken log into a new file, read back and verified "
-    "(exit 2 when nothing usable survives)"
-)
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("log", metavar="BROKEN.mcap")

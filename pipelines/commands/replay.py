@@ -24,7 +24,6 @@ if TYPE_CHECKING:
     # every ``beambench`` invocation (the CLI imports every command module).
     from pipelines.review.viewer import RunViewer
 
-HELP = "stream a raw run log to Rerun without processing"
 
 APP_ID = "beambench"
 

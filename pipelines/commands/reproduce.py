@@ -14,8 +14,6 @@ from pathlib import Path
 
 from pipelines.errors import BeambenchError
 
-HELP = "reproduce the paper's comparisons as a report"
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(

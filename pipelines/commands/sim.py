@@ -30,8 +30,6 @@ from sim.errors import ModelNotAvailable
 from sim.models.registry import MODELS
 from sim.statics import table2_comparison
 
-HELP = "simulate a scene (reciprocating, static, free-decay, spin-up, falling-body, modes, linkage)"
-
 SCENES = ("reciprocating", "static", "free-decay", "spin-up", "falling-body", "modes", "linkage")
 
 DEFAULT_MASS_KG = {"static": 0.149, "free-decay": 0.1}

@@ -16,8 +16,6 @@ from pipelines.commands.sim import MAX_DAMPING, MAX_DURATION_S, SOLVE_S_PER_S, h
 from pipelines.errors import BeambenchError
 from sim.models.registry import MODELS
 
-HELP = "simulate the reciprocating bench over crank frequencies (and a1) on a Dask cluster"
-
 # as campaign: some points failed (their error is in the file's `error` variable)
 EXIT_SOME_FAILED = 1
 

@@ -20,8 +20,6 @@ from urllib.parse import quote
 
 from pipelines.errors import BeambenchError
 
-HELP = "open a .rrd recording in Rerun's viewer (native, or served to a browser with --web)"
-
 RRD_MAGIC = b"RRF2"  # the first bytes of every .rrd file rerun writes
 
 

@@ -38,6 +38,28 @@ def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None
     }
 
 
+def test_the_list_and_a_mistake_import_no_command() -> None:
+    # a command's module (and its libraries: numpy, OpenCV, numba, xarray...) is imported
+    # when it runs, or its own help is asked for; ``--help`` and a usage mistake answer
+    # without them (they took ~1.3 s when every command was imported first)
+    code = (
+        "import sys\n"
+        "from pipelines.cli import main\n"
+        "for argv in (['--help'], ['bogus'], ['-v']):\n"
+        "    try:\n"
+        "        main(argv)\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "heavy = [m for m in ('numpy', 'vision', 'sim', 'daq') if m in sys.modules]\n"
+        "commands = [m for m in sys.modules if m.startswith('pipelines.commands.')]\n"
+        "print('imported:', heavy, commands)\n"
+        "main(['info', '--help'])\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert "imported: [] []" in proc.stdout.splitlines(), proc.stdout + proc.stderr
+    assert "usage: beambench info" in proc.stdout and proc.returncode == 0
+
+
 @pytest.mark.parametrize("name", COMMANDS)
 def test_each_subcommand_has_help(name: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as info:
