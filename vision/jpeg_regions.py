@@ -104,7 +104,9 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     JPEG, not baseline, neither gray nor YCbCr with the sampling the module's notes
     name in one interleaved scan, no restart interval, an interval that does not divide
     the MCU row, restart markers missing, out of order or damaged)."""
-    got = _parse_layout(np.frombuffer(data, dtype=np.uint8), MAX_SIDE_PX)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    _touch(buf)
+    got = _parse_layout(buf, MAX_SIDE_PX)
     if got[0] == 0:
         return None
     width, height, interval, sof_at, scan_at, starts, ends, h, v = got
@@ -124,6 +126,19 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
         mcu_w_px=mcu_w,
         mcu_h_px=mcu_h,
     )
+
+
+@kernel
+def _touch(buf: NDArray[np.uint8]) -> int:
+    """A load of every 64-byte line of ``buf`` (their OR returned, so that none is left
+    out): bytes not in the core's cache arrive many at once, before :func:`_parse_layout`
+    reads them in a loop whose branches would wait on each in turn (half its time on a
+    JPEG just read, or one the measurement of the last frame has pushed out of cache)."""
+    words = buf[: buf.size // 8 * 8].view(np.uint64)
+    acc = np.uint64(0)
+    for i in range(0, words.size, 8):
+        acc |= words[i]
+    return int(acc & np.uint64(1))
 
 
 @kernel
