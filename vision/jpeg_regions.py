@@ -542,19 +542,32 @@ def _put_words(
     """:func:`_put_segments` on the images as flat arrays of words (8-byte words, or
     bytes where the widths are no multiple of 8), ``dst_w``, ``src_w`` and ``seg_w`` of
     them to a row."""
+    # a run of segments side by side in both (the next in raster order, in the same
+    # row of each) is copied as one: rows the run's width (a band's rows are tens of
+    # segments wide), the copy's loop long enough to be worth its vector form
     row_d = np.uint64(dst_w)
     row_s = np.uint64(src_w)
-    width = np.uint64(seg_w)
-    for j in range(at.size):
+    j = 0
+    while j < at.size:
         r0 = at[j] // per_row * seg_h
         c0 = at[j] % per_row * seg_w
         pr = j // across * seg_h
         pc = j % across * seg_w
+        end = j + 1
+        while (
+            end < at.size
+            and at[end] == at[end - 1] + 1
+            and at[end] % per_row != 0
+            and end % across != 0
+        ):
+            end += 1
+        width = np.uint64((end - j) * seg_w)
         for y in range(seg_h):
             a = np.uint64(r0 + y) * row_d + np.uint64(c0)
             b = np.uint64(pr + y) * row_s + np.uint64(pc)
             for x in range(width):
                 dst[a + x] = src[b + x]
+        j = end
 
 
 def _check_canvas(layout: JpegLayout, canvas: NDArray[np.uint8]) -> None:
