@@ -104,7 +104,9 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
     JPEG, not baseline, neither gray nor YCbCr with the sampling the module's notes
     name in one interleaved scan, no restart interval, an interval that does not divide
     the MCU row, restart markers missing, out of order or damaged)."""
-    got = _parse_layout(np.frombuffer(data, dtype=np.uint8), MAX_SIDE_PX)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    _touch(buf)
+    got = _parse_layout(buf, MAX_SIDE_PX)
     if got[0] == 0:
         return None
     width, height, interval, sof_at, scan_at, starts, ends, h, v = got
@@ -124,6 +126,19 @@ def jpeg_layout(data: bytes) -> JpegLayout | None:
         mcu_w_px=mcu_w,
         mcu_h_px=mcu_h,
     )
+
+
+@kernel
+def _touch(buf: NDArray[np.uint8]) -> int:
+    """A load of every 64-byte line of ``buf`` (their OR returned, so that none is left
+    out): bytes not in the core's cache arrive many at once, before :func:`_parse_layout`
+    reads them in a loop whose branches would wait on each in turn (half its time on a
+    JPEG just read, or one the measurement of the last frame has pushed out of cache)."""
+    words = buf[: buf.size // 8 * 8].view(np.uint64)
+    acc = np.uint64(0)
+    for i in range(0, words.size, 8):
+        acc |= words[i]
+    return int(acc & np.uint64(1))
 
 
 @kernel
@@ -527,19 +542,32 @@ def _put_words(
     """:func:`_put_segments` on the images as flat arrays of words (8-byte words, or
     bytes where the widths are no multiple of 8), ``dst_w``, ``src_w`` and ``seg_w`` of
     them to a row."""
+    # a run of segments side by side in both (the next in raster order, in the same
+    # row of each) is copied as one: rows the run's width (a band's rows are tens of
+    # segments wide), the copy's loop long enough to be worth its vector form
     row_d = np.uint64(dst_w)
     row_s = np.uint64(src_w)
-    width = np.uint64(seg_w)
-    for j in range(at.size):
+    j = 0
+    while j < at.size:
         r0 = at[j] // per_row * seg_h
         c0 = at[j] % per_row * seg_w
         pr = j // across * seg_h
         pc = j % across * seg_w
+        end = j + 1
+        while (
+            end < at.size
+            and at[end] == at[end - 1] + 1
+            and at[end] % per_row != 0
+            and end % across != 0
+        ):
+            end += 1
+        width = np.uint64((end - j) * seg_w)
         for y in range(seg_h):
             a = np.uint64(r0 + y) * row_d + np.uint64(c0)
             b = np.uint64(pr + y) * row_s + np.uint64(pc)
             for x in range(width):
                 dst[a + x] = src[b + x]
+        j = end
 
 
 def _check_canvas(layout: JpegLayout, canvas: NDArray[np.uint8]) -> None:

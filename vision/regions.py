@@ -45,13 +45,10 @@ from vision.frame_measurement import FrameMeasurement
 from vision.jit import kernel
 from vision.jpeg_regions import (
     JpegLayout,
-    blank_canvas,
     decode_into,
-    decode_segments,
     fill_segments,
     image_of,
     jpeg_layout,
-    paste,
     segments_of_blocks,
 )
 from vision.locate import (
@@ -158,17 +155,23 @@ class RegionReader:
         ring_segs = self._ring_segments(layout)
         if ring_segs.size == 0:  # the circles miss the image: the measurement says why
             return None
+        # The circles' segments decoded straight into this frame's canvas (the last
+        # frame's, used again: see _take_canvas)
+        canvas, old_done, old_level = self._take_canvas(layout)
         try:
-            strip = decode_segments(layout, ring_segs)
+            decode_into(layout, canvas, ring_segs)
         except ValueError:
             return None
         # The background's level: the circles' median sample (the beam covers a few % of
-        # them); what is not decoded is that constant.
-        level = int(_median_sampled(strip, 2, 4))
+        # them; every 2nd row and 4th column of their segments one under another, read
+        # in place); what is not decoded is that constant.
+        level = int(
+            _median_of_segments(canvas, layout.per_row, ring_segs, *layout.segment_px[::-1], 2, 4)
+        )
+        # what the last frame left that may not hold ``level`` (None: nothing)
+        stale = old_done if level == old_level else np.ones_like(old_done)
         # What was decoded, by segment (whole segments are decoded, the circles' first:
         # none of them again where the band overlaps them).
-        canvas, stale = self._take_canvas(layout, level)
-        paste(layout, canvas, ring_segs, strip)
         done = np.zeros(layout.per_row * layout.mcu_rows, dtype=bool)
         done[ring_segs] = True
         # the crossings read the circles' pixels alone (the bilinear samples' four), all
@@ -205,45 +208,34 @@ class RegionReader:
             want = read | self._predicted(p1, p2, w0, shape, behind_m=self._length)
         return None
 
-    def _take_canvas(
-        self, layout: JpegLayout, level: int
-    ) -> tuple[NDArray[np.uint8], NDArray[np.bool_] | None]:
-        """The canvas for this frame and the segments of it that may not hold ``level``
-        (None: none): the last frame's used again (what it decoded, or all of it when
-        its level was another), blanked by :meth:`_blank_stale` once this frame's own
-        segments are decoded (a new canvas costs ~0.1 ms of a ~1.5 ms decode, blanking
-        the last frame's band anew where this one decodes it again is wasted)."""
+    def _take_canvas(self, layout: JpegLayout) -> tuple[NDArray[np.uint8], NDArray[np.bool_], int]:
+        """The canvas for this frame, the segments of it the last frame decoded and the
+        level it was blanked to: the last frame's canvas used again (its segments
+        decoded this frame, the rest blanked by :meth:`_blank_stale` once this frame's
+        own segments are decoded: a new canvas costs ~0.1 ms of a ~1.5 ms decode,
+        blanking the last frame's band anew where this one decodes it again is wasted),
+        or a new one of no content (every segment to be blanked, at level -1)."""
         n_seg = layout.per_row * layout.mcu_rows
         seg_w, seg_h = layout.segment_px
+        shape = (layout.mcu_rows * seg_h, layout.per_row * seg_w)
         canvas, old = self._canvas, self._canvas_done
         self._canvas = None  # until blanked: a frame given up half way leaves it stale
-        if (
-            canvas is None
-            or old.size != n_seg
-            or canvas.shape
-            != (
-                layout.mcu_rows * seg_h,
-                layout.per_row * seg_w,
-            )
-        ):
-            return blank_canvas(layout, level), None
-        if level == self._canvas_level:
-            return canvas, old
-        return canvas, np.ones(n_seg, dtype=bool)
+        if canvas is None or old.size != n_seg or canvas.shape != shape:
+            return np.empty(shape, dtype=np.uint8), np.ones(n_seg, dtype=bool), -1
+        return canvas, old, self._canvas_level
 
     def _blank_stale(
         self,
         layout: JpegLayout,
         canvas: NDArray[np.uint8],
-        stale: NDArray[np.bool_] | None,
+        stale: NDArray[np.bool_],
         done: NDArray[np.bool_],
         level: int,
     ) -> None:
         """Set what the last frame left and this one did not decode to ``level``; the
         canvas is then this frame's: ``level`` wherever not ``done`` (which a regrow
         adds to in place)."""
-        if stale is not None:
-            fill_segments(layout, canvas, stale & ~done, level)
+        fill_segments(layout, canvas, stale & ~done, level)
         self._canvas, self._canvas_level, self._canvas_done = canvas, level, done
 
     def lose_track(self) -> None:
@@ -605,18 +597,39 @@ def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 @kernel
-def _median_sampled(values: NDArray[np.uint8], step_rows: int, step_cols: int) -> float:
-    """``np.median(values[::step_rows, ::step_cols])`` of a 2-D uint8 array, from the
-    samples' histogram (a partition of tens of thousands of values costs several times
-    more)."""
+def _median_of_segments(
+    canvas: NDArray[np.uint8],
+    per_row: int,
+    segments: NDArray[np.intp],
+    seg_h: int,
+    seg_w: int,
+    step_rows: int,
+    step_cols: int,
+) -> float:
+    """``np.median(strip[::step_rows, ::step_cols])`` of the strip of the given segments
+    (``seg_h x seg_w`` px, ``per_row`` to a row of ``canvas``) one under another, each
+    read in its place in the canvas (``seg_h`` a multiple of ``step_rows``, ``seg_w`` of
+    ``step_cols``: each segment's samples are then its rows ``0, step_rows, ...`` and
+    columns ``0, step_cols, ...``), from the samples' histogram (a partition of tens of
+    thousands of values costs several times more)."""
     hist = np.zeros(256, dtype=np.int64)
-    flat = values.ravel()
-    width = np.uint64(values.shape[1])
+    flat = canvas.ravel()
+    width = np.uint64(canvas.shape[1])
     step = np.uint64(step_cols)
-    for r in range(0, values.shape[0], step_rows):  # unsigned offsets: no wraparound checks
-        row = np.uint64(r) * width
-        for c in range(np.uint64(0), width, step):
-            hist[flat[row + c]] += 1
+    for j in range(segments.size):
+        r0 = segments[j] // per_row * seg_h
+        c0 = np.uint64(segments[j] % per_row * seg_w)
+        for r in range(r0, r0 + seg_h, step_rows):
+            row = np.uint64(r) * width + c0
+            for c in range(np.uint64(0), np.uint64(seg_w), step):
+                hist[flat[row + c]] += 1
+    return _hist_median(hist)
+
+
+@kernel
+def _hist_median(hist: NDArray[np.int64]) -> float:
+    """The median of the values a histogram of 256 bins counts (128 of none: numpy's
+    NaN-free form of an empty median, as the callers have it)."""
     n = 0
     for v in range(256):
         n += hist[v]

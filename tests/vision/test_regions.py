@@ -123,10 +123,13 @@ def test_damaged_frames_between_good_ones_leave_nothing_in_the_canvas(scene) -> 
         _same(got, wants[(i + 1) % 2])
 
 
-def test_a_band_that_fails_half_decoded_leaves_nothing_in_the_canvas(scene, monkeypatch) -> None:
+@pytest.mark.parametrize("failing_call", [1, 2])
+def test_a_band_that_fails_half_decoded_leaves_nothing_in_the_canvas(
+    scene, monkeypatch, failing_call
+) -> None:
     """libjpeg reads most damage as some pixels; a splice it refuses after writing part of
-    the band (here: the band written, then the error) must not leave that frame's pixels
-    for the next one to read as decoded."""
+    the canvas (here: the circles' segments, or the band, written, then the error) must not
+    leave that frame's pixels for the next one to read as decoded."""
     import vision.regions as regions
 
     frames, cal = scene
@@ -135,17 +138,19 @@ def test_a_band_that_fails_half_decoded_leaves_nothing_in_the_canvas(scene, monk
     goods = [encode(frames[k], "jpeg", 90) for k in (0, 3)]
     wants = [measurer.measure(decode(g)) for g in goods]
     real = regions.decode_into
-    failing = {"on": False, "raised": 0}
+    failing = {"on": False, "calls": 0, "raised": 0}
 
     def decode_into(layout, canvas, segments):  # type: ignore[no-untyped-def]
         real(layout, canvas, segments)
         if failing["on"]:
-            failing["raised"] += 1
-            raise ValueError("a segment that does not decode")
+            failing["calls"] += 1
+            if failing["calls"] == failing_call:  # 1: the circles', 2: the band's
+                failing["raised"] += 1
+                raise ValueError("a segment that does not decode")
 
     monkeypatch.setattr(regions, "decode_into", decode_into)
     for i in range(4):
-        failing["on"] = True
+        failing["on"], failing["calls"] = True, 0
         reader.measure(goods[i % 2])  # given up half way: decoded whole instead
         failing["on"] = False
         got = reader.measure(goods[(i + 1) % 2])

@@ -14,7 +14,7 @@ from vision.config import CameraConfig, CameraPoseConfig
 from vision.measure import Measurer
 from vision.regions import (
     RegionReader,
-    _median_sampled,
+    _median_of_segments,
     _missing,
     _missing_segments,
     _tube_pixels,
@@ -205,20 +205,42 @@ def test_unbounded_tubes_cover_everything(reader) -> None:
 
 
 def test_median_of_samples_is_numpys() -> None:
-    """Every 2nd row and 4th column, as np.median of the slice: odd and even counts
-    (the mean of the two middle values), ties, one value, the extremes, none."""
+    """Every 2nd row and 4th column of the segments' strip, read in place in the canvas,
+    as np.median of the strip's slice: odd and even counts (the mean of the two middle
+    values), ties, one segment, the extremes, none."""
     rng = np.random.default_rng(10)
-    for shape in ((8, 64), (16, 128), (24, 8), (1, 1), (3, 5), (800, 128)):
+    for seg_h, seg_w, per_row, rows in (
+        (8, 32, 5, 4),
+        (16, 64, 3, 3),
+        (8, 8, 1, 6),
+        (8, 32, 64, 2),
+    ):
         for kind in ("uniform", "narrow", "two"):
+            shape = (rows * seg_h, per_row * seg_w)
             if kind == "uniform":
-                v = rng.integers(0, 256, shape, dtype=np.uint8)
+                canvas = rng.integers(0, 256, shape, dtype=np.uint8)
             elif kind == "narrow":
-                v = rng.integers(100, 104, shape, dtype=np.uint8)
+                canvas = rng.integers(100, 104, shape, dtype=np.uint8)
             else:
-                v = np.where(rng.random(shape) < 0.5, 0, 255).astype(np.uint8)
-            assert _median_sampled(v, 2, 4) == np.median(v[::2, ::4])
-            assert _median_sampled(v, 1, 1) == np.median(v)
-    assert _median_sampled(np.zeros((0, 4), np.uint8), 2, 4) == 128.0  # the numpy form's
+                canvas = np.where(rng.random(shape) < 0.5, 0, 255).astype(np.uint8)
+            for n in (1, 2, 3, rows * per_row):
+                segs = np.sort(rng.choice(rows * per_row, n, replace=False)).astype(np.intp)
+                strip = np.concatenate(
+                    [
+                        canvas[
+                            s // per_row * seg_h : (s // per_row + 1) * seg_h,
+                            s % per_row * seg_w : (s % per_row + 1) * seg_w,
+                        ]
+                        for s in segs
+                    ]
+                )
+                got = _median_of_segments(canvas, per_row, segs, seg_h, seg_w, 2, 4)
+                assert got == np.median(strip[::2, ::4])
+                got = _median_of_segments(canvas, per_row, segs, seg_h, seg_w, 1, 1)
+                assert got == np.median(strip)
+    none = np.zeros(0, dtype=np.intp)
+    canvas = np.zeros((8, 32), np.uint8)
+    assert _median_of_segments(canvas, 1, none, 8, 32, 2, 4) == 128.0  # the numpy form's
 
 
 def test_missing_segments_are_the_numpy_forms() -> None:
