@@ -1079,19 +1079,48 @@ def _centre_k(
 ) -> NDArray[np.float64]:
     """:class:`CentreLine` at ``a`` (``value``: the series, extended linearly past both
     ends; else its slope ``dcoef``): ``a`` clipped to ``0 .. amax`` as ``np.clip`` does
-    (NaN stays NaN), ``u = a / amax``, each series by :func:`_polyval_k`."""
-    out = np.empty(a.shape[0])
-    for m in range(a.shape[0]):
+    (NaN stays NaN), ``u = a / amax``, each series by :func:`_polyval_rows_k`."""
+    n = a.shape[0]
+    u, beyond = np.empty(n), np.empty(n)
+    for m in range(n):
         x = a[m]
         ac = x
         if x < 0.0:
             ac = 0.0
         elif x > amax:
             ac = amax
-        u = ac / amax
-        d = _polyval_k(dcoef, u)
-        out[m] = _polyval_k(coef, u) + (x - ac) * d if value else d
+        u[m] = ac / amax
+        beyond[m] = x - ac
+    d = np.empty(n)
+    _polyval_rows_k(dcoef, u, d)
+    if not value:
+        return d
+    out = np.empty(n)
+    _polyval_rows_k(coef, u, out)
+    for m in range(n):
+        out[m] = out[m] + beyond[m] * d[m]
     return out
+
+
+@kernel
+def _polyval_rows_k(
+    c: NDArray[np.float64], x: NDArray[np.float64], out: NDArray[np.float64]
+) -> None:
+    """:func:`_polyval_k` at every point of ``x``, into ``out``: each point's operations
+    the same, in the same order, but the coefficients in the outer loop and the points
+    in the inner one, which runs in SIMD (a third of the time on a beam's points)."""
+    n, n_x = c.shape[0], x.shape[0]
+    if n == 0:
+        for m in range(n_x):
+            out[m] = x[m] * 0.0
+        return
+    top = c[n - 1]
+    for m in range(n_x):
+        out[m] = top + x[m] * 0.0
+    for i in range(n - 2, -1, -1):
+        ci = c[i]
+        for m in range(n_x):
+            out[m] = ci + out[m] * x[m]
 
 
 def linspace(start: float, stop: float, num: int) -> NDArray[np.float64]:
