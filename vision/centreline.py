@@ -665,10 +665,11 @@ def _group_scales_k(
     start = 0
     for end in ends:
         n = 0
+        # (every point written, the kept ones counted: no branch a point, here and in
+        # the kernels below; a left-out point's value is overwritten by the next)
         for m in range(start, end):
-            if not use_keep or keep[m]:
-                buf[n] = abs(r[m])
-                n += 1
+            buf[n] = abs(r[m])
+            n += int(keep[m]) if use_keep else 1
         s = 1.4826 * median_in_place(buf[:n]) + 1e-12 if n else 1.0
         for m in range(start, end):
             sig[m] = s
@@ -720,14 +721,15 @@ def _irls_k(
             return 3
         r = _residuals_k(a_t, lo, hi, b, coef)
         _group_scales_k(r, ends, keep, it != 0, sig)
-        same = True
+        changed = 0
         for m in range(n):
             z = r[m] / (TUKEY_C * sig[m])
-            inside[m] = abs(z) < 1.0
+            ins = abs(z) < 1.0
+            inside[m] = ins
             t = 1.0 - z * z
-            w[m] = t * t if inside[m] else 0.0
-            same = same and inside[m] == keep[m]
-        if it >= 2 and same:
+            w[m] = t * t if ins else 0.0
+            changed += ins != keep[m]
+        if it >= 2 and changed == 0:
             break
         for m in range(n):
             keep[m] = inside[m]
@@ -741,8 +743,7 @@ def _hub_edge_short_k(keep: NDArray[np.bool_], span_ends: NDArray[np.int64]) -> 
     for s in range(2, span_ends.shape[0]):
         cnt = 0
         for m in range(span_ends[s - 1], span_ends[s]):
-            if keep[m]:
-                cnt += 1
+            cnt += int(keep[m])
         if cnt < MIN_HUB_EDGE:
             return True
     return False
@@ -764,10 +765,9 @@ def _final_k(
     of freedom, 2 for the others). Returns the coefficients, the residuals, the inverse
     normal matrix, and False where a solve met a singular matrix."""
     k, n = a_t.shape
-    w = np.zeros(n)
+    w = np.empty(n)
     for m in range(n):
-        if keep[m]:
-            w[m] = 1.0 / (sig[m] * sig[m])
+        w[m] = 1.0 / (sig[m] * sig[m]) if keep[m] else 0.0
     coef, ok = _wls_k(a_t, lo, hi, b, w)
     if not ok:
         return coef, b.copy(), np.full((k, k), np.nan), False
@@ -783,8 +783,9 @@ def _final_k(
                 ss += r[m] * r[m]
         dof = max(nk - (p_beam if g == 0 else 2), 1)
         v = ss / dof if nk else 1.0
+        wv = 1.0 / max(v, 1e-18)
         for m in range(start, end):
-            w[m] = 1.0 / max(v, 1e-18) if keep[m] else 0.0
+            w[m] = wv if keep[m] else 0.0
         start = end
     gram = np.empty((k, k))
     rhs = np.empty(k)
@@ -845,9 +846,8 @@ def _span_stats_k(
     for s in range(ends.shape[0]):
         n = 0
         for m in range(start, ends[s]):
-            if keep[m]:
-                buf[n] = r[m]
-                n += 1
+            buf[n] = r[m]
+            n += int(keep[m])
         infl = max(infl, _long_run_k(buf[:n], max_lag))
         if s < 2:
             rho = max(rho, _lag1_k(buf[:n]))
@@ -863,12 +863,11 @@ def _free_slope_k(
     ``keep``: the third coefficient, the residual variance, and the third diagonal
     element of the inverse normal matrix (False: singular)."""
     k, n = ab.shape
-    w = np.zeros(n)
+    w = np.empty(n)
     n_k = 0
     for m in range(n):
-        if keep[m]:
-            w[m] = 1.0
-            n_k += 1
+        w[m] = 1.0 if keep[m] else 0.0
+        n_k += int(keep[m])
     gram = np.empty((k, k))
     rhs = np.empty(k)
     lo, hi = np.zeros(k, dtype=np.int64), np.full(k, n, dtype=np.int64)
@@ -934,8 +933,7 @@ def _joint_k(
     for s in range(span_ends.shape[0]):
         cnt = 0
         for m in range(start, span_ends[s]):
-            if keep[m]:
-                cnt += 1
+            cnt += int(keep[m])
         if cnt < (min_edge if s < 2 else MIN_HUB_EDGE):
             return 1 if s < 2 else 2, b, b, empty2, nan, nan, nan, nan, nan
         start = span_ends[s]
