@@ -665,10 +665,11 @@ def _group_scales_k(
     start = 0
     for end in ends:
         n = 0
+        # (every point written, the kept ones counted: no branch a point, here and in
+        # the kernels below; a left-out point's value is overwritten by the next)
         for m in range(start, end):
-            if not use_keep or keep[m]:
-                buf[n] = abs(r[m])
-                n += 1
+            buf[n] = abs(r[m])
+            n += int(keep[m]) if use_keep else 1
         s = 1.4826 * median_in_place(buf[:n]) + 1e-12 if n else 1.0
         for m in range(start, end):
             sig[m] = s
@@ -720,14 +721,15 @@ def _irls_k(
             return 3
         r = _residuals_k(a_t, lo, hi, b, coef)
         _group_scales_k(r, ends, keep, it != 0, sig)
-        same = True
+        changed = 0
         for m in range(n):
             z = r[m] / (TUKEY_C * sig[m])
-            inside[m] = abs(z) < 1.0
+            ins = abs(z) < 1.0
+            inside[m] = ins
             t = 1.0 - z * z
-            w[m] = t * t if inside[m] else 0.0
-            same = same and inside[m] == keep[m]
-        if it >= 2 and same:
+            w[m] = t * t if ins else 0.0
+            changed += ins != keep[m]
+        if it >= 2 and changed == 0:
             break
         for m in range(n):
             keep[m] = inside[m]
@@ -741,8 +743,7 @@ def _hub_edge_short_k(keep: NDArray[np.bool_], span_ends: NDArray[np.int64]) -> 
     for s in range(2, span_ends.shape[0]):
         cnt = 0
         for m in range(span_ends[s - 1], span_ends[s]):
-            if keep[m]:
-                cnt += 1
+            cnt += int(keep[m])
         if cnt < MIN_HUB_EDGE:
             return True
     return False
@@ -764,10 +765,9 @@ def _final_k(
     of freedom, 2 for the others). Returns the coefficients, the residuals, the inverse
     normal matrix, and False where a solve met a singular matrix."""
     k, n = a_t.shape
-    w = np.zeros(n)
+    w = np.empty(n)
     for m in range(n):
-        if keep[m]:
-            w[m] = 1.0 / (sig[m] * sig[m])
+        w[m] = 1.0 / (sig[m] * sig[m]) if keep[m] else 0.0
     coef, ok = _wls_k(a_t, lo, hi, b, w)
     if not ok:
         return coef, b.copy(), np.full((k, k), np.nan), False
@@ -783,8 +783,9 @@ def _final_k(
                 ss += r[m] * r[m]
         dof = max(nk - (p_beam if g == 0 else 2), 1)
         v = ss / dof if nk else 1.0
+        wv = 1.0 / max(v, 1e-18)
         for m in range(start, end):
-            w[m] = 1.0 / max(v, 1e-18) if keep[m] else 0.0
+            w[m] = wv if keep[m] else 0.0
         start = end
     gram = np.empty((k, k))
     rhs = np.empty(k)
@@ -845,9 +846,8 @@ def _span_stats_k(
     for s in range(ends.shape[0]):
         n = 0
         for m in range(start, ends[s]):
-            if keep[m]:
-                buf[n] = r[m]
-                n += 1
+            buf[n] = r[m]
+            n += int(keep[m])
         infl = max(infl, _long_run_k(buf[:n], max_lag))
         if s < 2:
             rho = max(rho, _lag1_k(buf[:n]))
@@ -863,12 +863,11 @@ def _free_slope_k(
     ``keep``: the third coefficient, the residual variance, and the third diagonal
     element of the inverse normal matrix (False: singular)."""
     k, n = ab.shape
-    w = np.zeros(n)
+    w = np.empty(n)
     n_k = 0
     for m in range(n):
-        if keep[m]:
-            w[m] = 1.0
-            n_k += 1
+        w[m] = 1.0 if keep[m] else 0.0
+        n_k += int(keep[m])
     gram = np.empty((k, k))
     rhs = np.empty(k)
     lo, hi = np.zeros(k, dtype=np.int64), np.full(k, n, dtype=np.int64)
@@ -934,8 +933,7 @@ def _joint_k(
     for s in range(span_ends.shape[0]):
         cnt = 0
         for m in range(start, span_ends[s]):
-            if keep[m]:
-                cnt += 1
+            cnt += int(keep[m])
         if cnt < (min_edge if s < 2 else MIN_HUB_EDGE):
             return 1 if s < 2 else 2, b, b, empty2, nan, nan, nan, nan, nan
         start = span_ends[s]
@@ -1079,19 +1077,48 @@ def _centre_k(
 ) -> NDArray[np.float64]:
     """:class:`CentreLine` at ``a`` (``value``: the series, extended linearly past both
     ends; else its slope ``dcoef``): ``a`` clipped to ``0 .. amax`` as ``np.clip`` does
-    (NaN stays NaN), ``u = a / amax``, each series by :func:`_polyval_k`."""
-    out = np.empty(a.shape[0])
-    for m in range(a.shape[0]):
+    (NaN stays NaN), ``u = a / amax``, each series by :func:`_polyval_rows_k`."""
+    n = a.shape[0]
+    u, beyond = np.empty(n), np.empty(n)
+    for m in range(n):
         x = a[m]
         ac = x
         if x < 0.0:
             ac = 0.0
         elif x > amax:
             ac = amax
-        u = ac / amax
-        d = _polyval_k(dcoef, u)
-        out[m] = _polyval_k(coef, u) + (x - ac) * d if value else d
+        u[m] = ac / amax
+        beyond[m] = x - ac
+    d = np.empty(n)
+    _polyval_rows_k(dcoef, u, d)
+    if not value:
+        return d
+    out = np.empty(n)
+    _polyval_rows_k(coef, u, out)
+    for m in range(n):
+        out[m] = out[m] + beyond[m] * d[m]
     return out
+
+
+@kernel
+def _polyval_rows_k(
+    c: NDArray[np.float64], x: NDArray[np.float64], out: NDArray[np.float64]
+) -> None:
+    """:func:`_polyval_k` at every point of ``x``, into ``out``: each point's operations
+    the same, in the same order, but the coefficients in the outer loop and the points
+    in the inner one, which runs in SIMD (a third of the time on a beam's points)."""
+    n, n_x = c.shape[0], x.shape[0]
+    if n == 0:
+        for m in range(n_x):
+            out[m] = x[m] * 0.0
+        return
+    top = c[n - 1]
+    for m in range(n_x):
+        out[m] = top + x[m] * 0.0
+    for i in range(n - 2, -1, -1):
+        ci = c[i]
+        for m in range(n_x):
+            out[m] = ci + out[m] * x[m]
 
 
 def linspace(start: float, stop: float, num: int) -> NDArray[np.float64]:
@@ -1531,10 +1558,11 @@ def _fit_joint(
         centre = CentreLine(_to_power(degree).T @ coef[n_coef - p_shape :], amax)
     else:
         centre = modal.centre(coef[n_coef - p_shape :])
+    # (np.compress: the rows a 2-D boolean index gives, in a quarter of its time)
     fit = CentreFit(
         centre=centre,
-        left=left[keep[:nl]],
-        right=right[keep[nl:n_beam]],
+        left=np.compress(keep[:nl], left, axis=0),
+        right=np.compress(keep[nl:n_beam], right, axis=0),
         width=float(coef[0]),
         rms=rms,
         tip_sd=tip_sd,
@@ -1700,11 +1728,14 @@ def _test_rows_k(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:func:`_fit_joint_core`'s shape test's rows at the beam's inliers (``keep``'s
     first ``n_beam``): the width's and the turn's rows of ``a_t``, its last ``p_shape``
-    (the shape's), then the ``extra`` rows; and the data ``b`` there (copies)."""
+    (the shape's), then the ``extra`` rows; and the data ``b`` there (copies), gathered
+    through the inliers' indices (a third less time than testing ``keep`` in each row's
+    loop)."""
+    idx = np.empty(n_beam, dtype=np.int64)
     n_k = 0
     for m in range(n_beam):
-        if keep[m]:
-            n_k += 1
+        idx[n_k] = m  # (overwritten by the next point when this one is left out)
+        n_k += int(keep[m])
     n_a = a_t.shape[0]
     n_m = 2 + p_shape
     x = np.empty((n_m + extra.shape[0], n_k))
@@ -1717,16 +1748,10 @@ def _test_rows_k(
         else:
             src = extra[r - n_m]
         dst = x[r]
-        k = 0
-        for m in range(n_beam):
-            if keep[m]:
-                dst[k] = src[m]
-                k += 1
-    k = 0
-    for m in range(n_beam):
-        if keep[m]:
-            yb[k] = b[m]
-            k += 1
+        for k in range(n_k):
+            dst[k] = src[idx[k]]
+    for k in range(n_k):
+        yb[k] = b[idx[k]]
     return x, yb
 
 

@@ -40,7 +40,7 @@ from vision.centreline import (
     JointFit,
     ModalCentreLine,
     PointsMemo,
-    _polyval_k,
+    _polyval_rows_k,
     arc_length,
     fit_clamped_joint,
     linspace,
@@ -1017,10 +1017,15 @@ def _scaled_polyval_k(
     q: NDArray[np.float64], c: NDArray[np.float64], scale: float
 ) -> NDArray[np.float64]:
     """``np.polynomial.polynomial.polyval(q / scale, c) / scale`` point by point
-    (:func:`~vision.centreline._polyval_k`: Horner's rule as numpy runs it)."""
-    out = np.empty(q.shape[0])
-    for i in range(q.shape[0]):
-        out[i] = _polyval_k(c, q[i] / scale) / scale
+    (:func:`~vision.centreline._polyval_k`: Horner's rule as numpy runs it, for all the
+    points at once by :func:`~vision.centreline._polyval_rows_k`)."""
+    n = q.shape[0]
+    x, out = np.empty(n), np.empty(n)
+    for i in range(n):
+        x[i] = q[i] / scale
+    _polyval_rows_k(c, x, out)
+    for i in range(n):
+        out[i] = out[i] / scale
     return out
 
 
