@@ -380,6 +380,12 @@ def stream_processed(
     lon = CubicSpline(sim.time_s, sim.station_longitudinal_m, axis=0)
     t0_ns = int(ds.attrs.get("t_zero_ns", 0))
     frame_t = ds["frame_time"].values
+    # the simulated shape at every frame's time within the simulation's, at once
+    within = np.isfinite(frame_t) & (sim.time_s[0] <= frame_t) & (frame_t <= sim.time_s[-1])
+    shapes = None
+    if within.any():
+        shapes = np.asarray(lat(frame_t[within])), np.asarray(lon(frame_t[within]))
+    shape_row = np.cumsum(within) - 1
     by_seq = {f.sequence: (i, f) for i, f in enumerate(processed.frames)}
     length = processed.calibration.beam_length_m
     made: dict[int, tuple[bytes, str, float]] = {}
@@ -413,8 +419,9 @@ def stream_processed(
         i, measured = hit
         t = float(frame_t[i])
         shape = None
-        if np.isfinite(t) and sim.time_s[0] <= t <= sim.time_s[-1]:
-            shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
+        if within[i] and shapes is not None:
+            k = shape_row[i]
+            shape = (sim.stations_m, shapes[0][k], shapes[1][k])
         shown = made.pop(sequence, None)
         if shown is None:
             assert frame is not None  # read from the log wherever no preview was made
