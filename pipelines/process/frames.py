@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -66,11 +66,17 @@ class MeasuredFrame:
     t_ns: int
     sequence: int
     measurement: FrameMeasurement
+    # the frame's logged bytes, on the frames given to ``on_measured`` only
+    # (:func:`measure_frames`): the workers do not send them back, and the frames it
+    # returns do not keep them
+    data: bytes | None = field(default=None, repr=False, compare=False)
 
 
 # what a worker's reader is built from: (calibration, stations, method, tip uncertainty
 # limit, decode in parts), with a token naming one call of measure_frames
 _Setup = tuple[str, tuple[Calibration, tuple[float, ...], str, float | None, bool]]
+# frames as sent to a worker: (t_ns, sequence, bytes) each
+_Items = list[tuple[int, int, bytes]]
 
 
 def _init_worker() -> None:
@@ -256,8 +262,9 @@ def measure_frames(
     ``max_tip_uncertainty_m`` (default: vision's) refuses frames whose stated tip lateral
     uncertainty exceeds it. ``decode_parts=False`` decodes every frame whole (the same
     results, slower: the comparison ``bench process`` prints). ``on_measured`` is given
-    the measured frames as they come, in order (e.g. the recording's previews, made
-    while the rest are measured).
+    the measured frames as they come, in order, each with its bytes as read (``data``:
+    e.g. the recording's previews, made while the rest are measured, without reading
+    the log again).
 
     ``workers`` defaults to the number of cores; 1 measures in this process. Workers are
     not forked from this process (:func:`_context`), so a script calling this needs the
@@ -352,16 +359,16 @@ def _measure_frames(
     # the chunks handed to the pool before its first result: measured here if no worker
     # ever answers (workers that die at start, e.g. a user who cannot execute the
     # interpreter: the pool starts but each worker's exec fails)
-    unanswered: list[list[tuple[int, int, bytes]]] = [first]
+    unanswered: list[_Items] = [first]
     ok = False
     try:
-        for chunk in _pooled(
-            pool, measure_chunk, head, chunks, in_flight=4 * n_workers, sent=unanswered
+        for sent, chunk in _pooled(
+            pool, measure_chunk, (first, head), chunks, in_flight=4 * n_workers, sent=unanswered
         ):
             out.extend(chunk)
             unanswered.clear()  # answered: a later death is an error, not a fallback
             if done:
-                done(chunk)
+                done(_with_data(chunk, sent))
         ok = True
     except WorkerError as exc:
         if out:
@@ -425,8 +432,17 @@ def _measure_here(
     for t_ns, seq, data in items:
         out.append(MeasuredFrame(t_ns, seq, reader.measure(data)))
         if progress:
-            progress(out[-1:])
+            progress(_with_data(out[-1:], [(t_ns, seq, data)]))
     return out
+
+
+def _with_data(frames: list[MeasuredFrame], items: _Items) -> list[MeasuredFrame]:
+    """The measured ``frames`` with the bytes they were measured from (``items``, the
+    same frames in the same order)."""
+    return [
+        MeasuredFrame(f.t_ns, f.sequence, f.measurement, data)
+        for f, (_, _, data) in zip(frames, items, strict=True)
+    ]
 
 
 def _chunks(items: Iterator[tuple[int, int, bytes]]) -> Iterator[list[tuple[int, int, bytes]]]:
@@ -437,23 +453,27 @@ def _chunks(items: Iterator[tuple[int, int, bytes]]) -> Iterator[list[tuple[int,
 def _pooled(
     pool: ProcessPoolExecutor,
     measure_chunk: Callable[[list[tuple[int, int, bytes]]], list[MeasuredFrame]],
-    head: Future[list[MeasuredFrame]],
-    chunks: Iterator[list[tuple[int, int, bytes]]],
+    head: tuple[_Items, Future[list[MeasuredFrame]]],
+    chunks: Iterator[_Items],
     *,
     in_flight: int,
-    sent: list[list[tuple[int, int, bytes]]],
-) -> Iterator[list[MeasuredFrame]]:
-    """Results of ``measure_chunk`` in order, ``head`` first, at most ``in_flight``
-    chunks queued (the frames' bytes stay bounded), each wait watched by :func:`_wait`."""
-    pending: collections.deque[Future[list[MeasuredFrame]]] = collections.deque([head])
+    sent: list[_Items],
+) -> Iterator[tuple[_Items, list[MeasuredFrame]]]:
+    """(chunk, results of ``measure_chunk`` on it) in order, ``head`` (a chunk and its
+    future) first, at most ``in_flight`` chunks queued (the frames' bytes stay bounded),
+    each wait watched by :func:`_wait`."""
+    pending: collections.deque[tuple[_Items, Future[list[MeasuredFrame]]]]
+    pending = collections.deque([head])
     try:
         for chunk in chunks:
             sent.append(chunk)  # the caller clears it at each result
-            pending.append(pool.submit(measure_chunk, chunk))
+            pending.append((chunk, pool.submit(measure_chunk, chunk)))
             if len(pending) >= in_flight:
-                yield _wait(pool, pending.popleft())
+                items, future = pending.popleft()
+                yield items, _wait(pool, future)
         while pending:
-            yield _wait(pool, pending.popleft())
+            items, future = pending.popleft()
+            yield items, _wait(pool, future)
     except (BrokenProcessPool, OSError) as exc:
         raise WorkerError(
             f"a frame-measuring worker process died ({exc}); measuring stopped. "
@@ -561,12 +581,49 @@ def stated_sds(
     return (total[0], total[1], total[2]), cal
 
 
+_Sds = tuple[tuple[float, float, float], tuple[float, float, float]]
+
+
+class StatedSds:
+    """The measured frames' :func:`stated_sds` with ``calibration``, worked out as the
+    frames come (an ``on_measured`` of :func:`measure_frames`, while the rest are
+    measured) instead of by :func:`as_arrays` after them all (0.4 ms a frame: a bench
+    minute's 900 frames held the run 0.4 s)."""
+
+    def __init__(self, calibration: Calibration | None) -> None:
+        self.calibration = calibration
+        self._sds: list[tuple[int, _Sds | None]] = []
+
+    def __call__(self, frames: Iterable[MeasuredFrame]) -> None:
+        cal = self.calibration
+        self._sds.extend(
+            (f.sequence, stated_sds(f.measurement, cal) if f.measurement.ok else None)
+            for f in frames
+        )
+
+    def of(
+        self, frames: list[MeasuredFrame], calibration: Calibration | None
+    ) -> list[_Sds | None] | None:
+        """Those of ``frames`` (None for a frame not measured), or None unless they are
+        what was given, in that order, with the same ``calibration``."""
+        if calibration is not self.calibration or len(frames) != len(self._sds):
+            return None
+        if any(f.sequence != seq for f, (seq, _) in zip(frames, self._sds, strict=True)):
+            return None
+        return [sds for _, sds in self._sds]
+
+
 def as_arrays(
-    frames: list[MeasuredFrame], calibration: Calibration | None = None
+    frames: list[MeasuredFrame],
+    calibration: Calibration | None = None,
+    stated: StatedSds | None = None,
 ) -> dict[str, np.ndarray]:
     """Columns of the measured frames (NaN where a frame gave no measurement). The
     standard uncertainties include the ``calibration``'s error when it is given
-    (:func:`stated_sds`); its share alone is in the ``calibration_*`` columns."""
+    (:func:`stated_sds`); its share alone is in the ``calibration_*`` columns.
+    ``stated``: the frames' uncertainties worked out already, used when they are these
+    frames' with this calibration."""
+    known = stated.of(frames, calibration) if stated is not None else None
     n = len(frames)
     s = max((f.measurement.stations_m.size for f in frames), default=0)
     sd_keys = ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m")
@@ -586,7 +643,8 @@ def as_arrays(
             cols["hub_angle_rad"][i] = m.hub_angle_rad
             cols["tip_lateral_m"][i] = m.tip_lateral_m
             cols["tip_longitudinal_m"][i] = m.tip_longitudinal_m
-            total, cal = stated_sds(m, calibration)
+            sds = known[i] if known is not None else None
+            total, cal = sds if sds is not None else stated_sds(m, calibration)
             for k, t, c in zip(sd_keys, total, cal, strict=True):
                 cols[k][i] = t
                 cols[f"calibration_{k}"][i] = c

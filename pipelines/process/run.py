@@ -6,6 +6,7 @@ Every step is a function of arrays; ``process_run`` only wires them together.
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import math
@@ -28,6 +29,7 @@ from pipelines.process.failures import FailureSummary, summarise_failures
 from pipelines.process.frames import (
     MeasuredFrame,
     StartedWorkers,
+    StatedSds,
     as_arrays,
     measure_frames,
     start_workers,
@@ -276,6 +278,19 @@ def _model_side(
     return shape, tip_strain, decay, sim, (t1 - t0, t2 - t1, t3 - t2, time.thread_time() - c0)
 
 
+def _import_ahead() -> None:
+    """Import, while the frames are measured, what the serial steps after them import
+    on a first run: xarray looks for optional array modules at the results' first
+    Dataset (dask.array), and writing the results file imports h5netcdf and h5py, and
+    dask's scheduler lookup imports distributed (~0.4 CPU s in all, each run of
+    ``beambench process``). A tiny Dataset written to memory takes the same paths. A
+    failure is left to the real steps to report."""
+    try:
+        xr.Dataset({"x": ("x", np.zeros(1))}).to_netcdf(io.BytesIO(), engine="h5netcdf")
+    except Exception:  # the results' own write reports what fails
+        log.debug("importing ahead failed", exc_info=True)
+
+
 def _model_error_below_image(
     sim: SimResult,
     frames: list[MeasuredFrame],
@@ -401,11 +416,20 @@ def _process_run(
             prior_tol,
             damping_law,
         )
+        side.submit(_import_ahead)  # then, in the same thread
         t0 = time.perf_counter()
         stations = tuple(float(x) for x in rig.gauges.positions_m)
         # a fresh kernel cache: the first frames wait ~25 s for numba's compile; say so
         cached = started.kernels_cached if started is not None else kernels_cached()
         label = "measure" if cached else "measure (compiling, first run: ~25 s)"
+        # each frame's stated uncertainties, worked out as it comes
+        stated = StatedSds(calibration)
+
+        def measured(batch: list[MeasuredFrame]) -> None:
+            stated(batch)
+            if on_measured is not None:
+                on_measured(batch)
+
         with Progress(label, total=run.frame_count) as bar:
             frames = measure_frames(
                 iter_frames(log_path),
@@ -414,10 +438,10 @@ def _process_run(
                 workers=workers,
                 progress=bar.update,
                 max_tip_uncertainty_m=max_tip_uncertainty_m,
-                on_measured=on_measured,
+                on_measured=measured,
                 started=started,
             )
-        cols = as_arrays(frames, calibration)
+        cols = as_arrays(frames, calibration, stated)
         failures = _report_failures(log_path, frames)
         hub = measured_hub([f.measurement for f in frames], calibration)
         if (note := offset_warning(hub, rig)) is not None:

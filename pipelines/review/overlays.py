@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
+from daq.imageinfo import image_encoding
 from daq.log import LogError, iter_frames
 from pipelines.process.frames import MeasuredFrame
 from pipelines.process.run import Processed
@@ -168,10 +169,12 @@ PREVIEW_BUDGET_BYTES = 256 * 1024 * 1024
 # times longer, one per call spent more CPU in Python (900 frames under load: 1.5-2.0 s
 # CPU at 16 per call, 2.4 s one by one, 3.0 s at 256)
 _FRAMES_PER_BATCH = 16
-_END = object()  # no more measurements will come
 # whole previews are made this many at a time (each frame alone, the decode and encode
 # outside the GIL): those left when the frames are measured use both cores, not one
 _WHOLE_THREADS = 2
+# the measured frames' bytes (given with their measurements) are held for the previews
+# up to this many bytes; the frames past it are read from the log again
+HELD_BYTES = 64 * 1024 * 1024
 
 
 class FramePreviews:
@@ -180,7 +183,9 @@ class FramePreviews:
 
     Start it before ``process_run`` and give ``process_run`` its :meth:`feed` as
     ``on_measured``: most frames show only the measured region as that frame's
-    (``mode="region"``), so the thread follows the measurements; ``mode="whole"`` makes
+    (``mode="region"``), so the thread follows the measurements, made from the bytes the
+    run read (given with them; up to :data:`HELD_BYTES` held, a frame given without its
+    bytes or past them is read from the log again); ``mode="whole"`` makes
     every frame whole, ahead of them, :data:`_WHOLE_THREADS` at a time (each depends on
     its frame alone), so those left when the frames are measured do not leave a core
     idle. :func:`stream_processed` takes what it made (the decodes and the JPEG encodes
@@ -205,7 +210,10 @@ class FramePreviews:
         self.cpu_s = 0.0  # and the CPU time it used (its helper threads' too)
         self._helpers_cpu_s: list[float] = []
         self._stop = threading.Event()
-        self._measured: dict[int, FrameMeasurement] = {}
+        # (t_ns, sequence, measurement, bytes or None) of the frames fed, in that order
+        self._measured: deque[tuple[int, int, FrameMeasurement, bytes | None]] = deque()
+        self._fed: set[int] = set()
+        self._held = 0  # bytes of the frames fed and not yet made
         self._fed_all = False
         self._cond = threading.Condition()
         self._thread = threading.Thread(target=self._run, name="frame-previews", daemon=True)
@@ -215,23 +223,33 @@ class FramePreviews:
         return self
 
     def feed(self, frames: Iterable[MeasuredFrame]) -> None:
-        """Measured frames, in any number at a time (``process_run``'s ``on_measured``)."""
+        """Measured frames, in the log's order, in any number at a time
+        (``process_run``'s ``on_measured``); a frame given again is ignored."""
         if self.mode == "whole":
             return
         with self._cond:
             for f in frames:
-                self._measured[f.sequence] = f.measurement
+                if f.sequence in self._fed:
+                    continue
+                self._fed.add(f.sequence)
+                data = f.data
+                if data is not None and self._held + len(data) > HELD_BYTES:
+                    data = None  # read from the log again
+                self._held += len(data) if data is not None else 0
+                self._measured.append((f.t_ns, f.sequence, f.measurement, data))
             self._cond.notify_all()
 
-    def _measurement(self, sequence: int) -> object:
-        if self.mode == "whole":
-            return None
+    def _next_measured(self) -> tuple[int, int, FrameMeasurement, bytes | None] | None:
+        """The next frame fed (t_ns, sequence, measurement, bytes or None), or None when
+        no more will be."""
         with self._cond:
-            while sequence not in self._measured:
+            while not self._measured:
                 if self._fed_all or self._stop.is_set():
-                    return _END
+                    return None
                 self._cond.wait(timeout=0.5)
-            return self._measured.pop(sequence)
+            fed = self._measured.popleft()
+            self._held -= len(fed[3]) if fed[3] is not None else 0
+            return fed
 
     def _run(self) -> None:
         t0, c0 = time.perf_counter(), time.thread_time()
@@ -248,16 +266,24 @@ class FramePreviews:
             self._make_whole(self.composer)
             return
         size = 0
+        logged: Iterator[Any] | None = None  # the log, opened at the first frame fed bare
         try:
-            for frame in iter_frames(self.log_path):
-                if self._stop.is_set() or size > PREVIEW_BUDGET_BYTES:
+            while not (self._stop.is_set() or size > PREVIEW_BUDGET_BYTES):
+                fed = self._next_measured()
+                if fed is None:
                     return
-                m = self._measurement(frame.sequence)
-                if m is _END:
-                    return
-                assert m is None or isinstance(m, FrameMeasurement)
-                shown = self.composer.show(frame.data, frame.encoding, m)
-                self._made[frame.sequence] = shown
+                t_ns, sequence, m, data = fed
+                if data is not None:
+                    encoding = image_encoding(data) or ""  # as the log's reader tells it
+                else:
+                    if logged is None:
+                        logged = iter_frames(self.log_path, start_ns=t_ns)
+                    frame = next((f for f in logged if f.sequence == sequence), None)
+                    if frame is None:
+                        return  # not in the log from there on: made in stream_processed
+                    data, encoding = frame.data, frame.encoding
+                shown = self.composer.show(data, encoding, m)
+                self._made[sequence] = shown
                 size += len(shown[0])
         except (VisionError, LogError, OSError, ValueError):
             return  # the frames left are reduced in stream_processed, which reports it
@@ -354,6 +380,12 @@ def stream_processed(
     lon = CubicSpline(sim.time_s, sim.station_longitudinal_m, axis=0)
     t0_ns = int(ds.attrs.get("t_zero_ns", 0))
     frame_t = ds["frame_time"].values
+    # the simulated shape at every frame's time within the simulation's, at once
+    within = np.isfinite(frame_t) & (sim.time_s[0] <= frame_t) & (frame_t <= sim.time_s[-1])
+    shapes = None
+    if within.any():
+        shapes = np.asarray(lat(frame_t[within])), np.asarray(lon(frame_t[within]))
+    shape_row = np.cumsum(within) - 1
     by_seq = {f.sequence: (i, f) for i, f in enumerate(processed.frames)}
     length = processed.calibration.beam_length_m
     made: dict[int, tuple[bytes, str, float]] = {}
@@ -387,8 +419,9 @@ def stream_processed(
         i, measured = hit
         t = float(frame_t[i])
         shape = None
-        if np.isfinite(t) and sim.time_s[0] <= t <= sim.time_s[-1]:
-            shape = (sim.stations_m, np.asarray(lat(t)), np.asarray(lon(t)))
+        if within[i] and shapes is not None:
+            k = shape_row[i]
+            shape = (sim.stations_m, shapes[0][k], shapes[1][k])
         shown = made.pop(sequence, None)
         if shown is None:
             assert frame is not None  # read from the log wherever no preview was made

@@ -85,6 +85,54 @@ def test_the_measured_frames_are_handed_on_in_order(workers: int) -> None:
     assert sum(counted) == 23
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_frames_handed_on_carry_their_bytes_and_those_returned_do_not(workers: int) -> None:
+    frames = [
+        SimpleNamespace(
+            t_ns=k * 1000, sequence=k, data=encode(np.full((96, 128), k, np.uint8), "png")
+        )
+        for k in range(9)
+    ]
+    handed: list[Any] = []
+    out = measure_frames(frames, CAL, stations_m=(0.2,), workers=workers, on_measured=handed.extend)
+    assert [(f.sequence, f.data) for f in handed] == [(f.sequence, f.data) for f in frames]
+    assert [f.measurement for f in handed] == [f.measurement for f in out]
+    assert all(f.data is None for f in out)
+
+
+def test_the_stated_uncertainties_worked_out_as_the_frames_come_are_used(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from pipelines.process.frames import MeasuredFrame, StatedSds, as_arrays
+    from vision import FrameMeasurement
+
+    frames = [
+        MeasuredFrame(k, k, FrameMeasurement(ok=True, tip_lateral_m=0.1 * k, tip_lateral_std_m=k))
+        for k in range(1, 4)
+    ] + [MeasuredFrame(9, 9, FrameMeasurement(ok=False, reason="no beam"))]
+    stated = StatedSds(CAL)
+    stated(frames[:2])
+    stated(frames[2:])
+    before = as_arrays(frames, CAL)
+
+    def not_again(*args: Any) -> Any:
+        raise AssertionError("worked out again")
+
+    monkeypatch.setattr(frames_module, "stated_sds", not_again)
+    got = as_arrays(frames, CAL, stated)
+    assert got.keys() == before.keys()
+    for key, column in before.items():
+        np.testing.assert_array_equal(got[key], column)
+    # other frames, another order or another calibration: worked out again
+    for args in (
+        (frames[::-1], CAL),
+        (frames[:2], CAL),
+        (frames, Calibration(np.array(IMG), np.array(PLANE))),
+    ):
+        with pytest.raises(AssertionError, match="worked out again"):
+            as_arrays(*args, stated)
+
+
 @pytest.mark.parametrize("poll_s", [frames_module.POLL_S, 1e6])
 def test_a_worker_killed_mid_run_is_an_error(
     poll_s: float, monkeypatch: pytest.MonkeyPatch

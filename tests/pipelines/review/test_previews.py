@@ -195,3 +195,43 @@ def test_whole_previews_made_several_at_a_time_keep_the_logs_order_up_to_a_failu
     sizes = np.cumsum([len(preview(f.data, 2)) for f in frames])
     monkeypatch.setattr(overlays, "PREVIEW_BUDGET_BYTES", int(sizes[4]))
     assert sorted(_whole_previews_of(frames, monkeypatch)) == [f.sequence for f in frames[:6]]
+
+
+class _LoggedFrame:
+    def __init__(self, sequence: int, t_ns: int, data: bytes) -> None:
+        self.sequence, self.t_ns, self.data, self.encoding = sequence, t_ns, data, "jpeg"
+
+
+@pytest.mark.parametrize("held", [None, "one"])
+def test_region_previews_are_made_from_the_bytes_given_with_the_measurements(
+    held: str | None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pipelines.process.frames import MeasuredFrame
+    from pipelines.review import overlays
+
+    rng = np.random.default_rng(7)
+    images = [rng.integers(0, 256, (64, 96), dtype=np.uint8) for _ in range(6)]
+    logged = [
+        _LoggedFrame(10 + k, 1000 * k, bytes(cv2.imencode(".jpg", im)[1]))
+        for k, im in enumerate(images)
+    ]
+    opened: list[int | None] = []
+
+    def fake_iter_frames(path: Path, *, start_ns: int | None = None) -> Any:
+        opened.append(start_ns)
+        return iter([f for f in logged if start_ns is None or f.t_ns >= start_ns])
+
+    monkeypatch.setattr(overlays, "iter_frames", fake_iter_frames)
+    if held == "one":  # the bytes held up to the budget: the first frame's only
+        monkeypatch.setattr(overlays, "HELD_BYTES", len(logged[0].data))
+    previews = FramePreviews(Path("never-opened.mcap"), 2, "region").start()
+    # (no measurement: each is shown whole) 10-12 given with their bytes, 13-15 without
+    with_bytes = [MeasuredFrame(f.t_ns, f.sequence, None, f.data) for f in logged[:3]]  # type: ignore[arg-type]
+    bare = [MeasuredFrame(f.t_ns, f.sequence, None) for f in logged[3:]]  # type: ignore[arg-type]
+    previews.feed(with_bytes)
+    previews.feed([*with_bytes[:1], *bare])  # a frame given again is not made again
+    made = dict(previews.take())
+    assert made == {f.sequence: (preview(f.data, 2), "jpeg", 0.5) for f in logged}
+    assert previews.composer is not None and previews.composer.whole_frames == len(logged)
+    # the log read only from the first frame given without its bytes (or past the budget)
+    assert opened == ([logged[3].t_ns] if held is None else [logged[1].t_ns])
