@@ -98,23 +98,29 @@ def order_stats_bounded(
     n = w.size
     if not 0 <= k1 <= k2 < n:
         return False, math.nan, math.nan
-    counts = np.zeros(buckets, dtype=np.intp)
+    counts = np.zeros(buckets, dtype=np.int32)
+    first, last = buckets, -1  # the buckets used
     for i in range(n):
         v = w[i] * scale
         if not (v >= 0.0 and v < buckets):  # NaN fails too
             return False, math.nan, math.nan
-        counts[int(v)] += 1
-    b, below = 0, 0
+        b = int(v)
+        counts[b] += 1
+        first, last = min(first, b), max(last, b)
+    # Low ranks walked to from the lowest bucket, high ones from the highest (a
+    # profile's levels lie near its ends).
+    b, below = first, 0
     while below + counts[b] <= k1:
         below += counts[b]
         b += 1
-    first = _bucket_kth(w, scale, b, counts[b], k1 - below)
+    low = _bucket_kth(w, scale, b, counts[b], k1 - below)
     if k2 == k1:
-        return True, first, first
-    while below + counts[b] <= k2:
-        below += counts[b]
-        b += 1
-    return True, first, _bucket_kth(w, scale, b, counts[b], k2 - below)
+        return True, low, low
+    b, above = last, 0  # above: the values in buckets over b
+    while n - above - counts[b] > k2:
+        above += counts[b]
+        b -= 1
+    return True, low, _bucket_kth(w, scale, b, counts[b], k2 - (n - above - counts[b]))
 
 
 @kernel
