@@ -7,8 +7,8 @@ or symmetric-blurred step edge). The points are mapped to the plane afterwards.
 
 The scan is compiled (:mod:`vision.jit`): one kernel call per strip for its scan lines'
 geometry, then for all strips of a frame one for every line's samples, steepest steps,
-levels and windows, and three for the erf fit; its numpy form was ~200 array calls of a
-few microseconds each (kept as the tests' reference, tests/vision/edges_reference.py).
+levels and windows, the erf fit and the edge points; its numpy form was ~200 array calls
+of a few microseconds each (kept as the tests' reference, tests/vision/edges_reference.py).
 """
 
 from __future__ import annotations
@@ -292,12 +292,10 @@ def _scan(
 ) -> list[StripEdges]:
     lines = np.concatenate([g.lines for g in geos])
     sizes = [len(g.lines) for g in geos]
-    n = len(lines)
     bounds = np.array(list(itertools.accumulate(sizes, initial=0)), dtype=np.intp)
     reaches = np.array([g.reach for g in geos], dtype=np.intp)
-    levels = estimator in ("area", "erf")
     tops = np.concatenate([g.top for g in geos])
-    buf, peak, cen, step, ramp, lo2, hi2 = _scan_kernel(
+    args = (
         np.ascontiguousarray(image),
         columns,
         lines,
@@ -309,29 +307,70 @@ def _scan(
         margin_px,
         window,
         max_window,
-        levels,
+    )
+    if estimator == "erf":  # (the measurement's: the whole scan in one call)
+        side_a, side_b, contrast, spread, ends = _scan_erf_k(*args)
+    else:
+        buf, peak, cen, step, ramp, _, _ = _scan_kernel(*args, estimator == "area")
+        if estimator == "gauss3":
+            # Each line spans its own strip's 2 reach + 1 samples (see _scan_kernel).
+            pad, m = max_window, 2 * max(g.reach for g in geos) + 1
+            prof2 = buf[:, pad : pad + m]
+            g = edge_gauss3(np.subtract(prof2[:, 1:], prof2[:, :-1]), peak)
+            cen = np.where(np.isfinite(g), g, cen)
+        side_a, side_b, contrast, spread, ends = _sides_k(
+            lines, tops, cen, step, ramp, bounds, columns
+        )
+    return [
+        StripEdges(side_a[a:b], side_b[a:b], contrast[a:b], spread[a:b])
+        for a, b in itertools.pairwise(ends.tolist())
+    ]
+
+
+@kernel
+def _scan_erf_k(
+    image: NDArray[np.uint8],
+    columns: bool,
+    lines: NDArray[np.intp],
+    top: NDArray[np.intp],
+    yc: NDArray[np.float64],
+    half: NDArray[np.float64],
+    bounds: NDArray[np.intp],
+    reaches: NDArray[np.intp],
+    margin: int,
+    window: int,
+    max_window: int,
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.intp],
+]:
+    """:func:`_scan` with the erf estimator: :func:`_scan_kernel`, :func:`_erf_fit` on
+    its samples (one edge width per strip and side: lines n.. are the falling sides)
+    and :func:`_sides_k`, in one call (each call's arrays boxed and unboxed were a
+    tenth of the scan)."""
+    n = len(lines)
+    buf, _, cen, step, ramp, lo2, hi2 = _scan_kernel(
+        image, columns, lines, top, yc, half, bounds, reaches, margin, window, max_window, True
     )
     # Each line spans its own strip's 2 reach + 1 samples (see _scan_kernel).
-    pad, m = max_window, 2 * max(g.reach for g in geos) + 1
+    pad, m = max_window, 2 * reaches.max() + 1
     prof2 = buf[:, pad : pad + m]
-    if levels and estimator == "erf":
-        # One edge width per strip and side (lines n.. are the falling sides).
-        blocks = np.concatenate([bounds, bounds[1:] + n])
-        cen = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks)
-    elif estimator == "gauss3":
-        g = edge_gauss3(np.subtract(prof2[:, 1:], prof2[:, :-1]), peak)
-        cen = np.where(np.isfinite(g), g, cen)
-    contrast = np.minimum(step[:n], step[n:])
-    spread = np.maximum(ramp[:n], ramp[n:])
-    side_a, side_b, good = _sides_k(lines, tops, cen, contrast, columns)
-    out = []
-    for a, b in itertools.pairwise(bounds):
-        k = good[a:b]
-        if k.all():  # (the common case: slices, no copies)
-            out.append(StripEdges(side_a[a:b], side_b[a:b], contrast[a:b], spread[a:b]))
-        else:
-            out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
-    return out
+    nb = len(bounds) - 1
+    blocks = np.empty(2 * nb + 1, dtype=np.intp)
+    for b in range(nb + 1):
+        blocks[b] = bounds[b]
+    for b in range(1, nb + 1):
+        blocks[nb + b] = bounds[b] + n
+    hw, ok, c, s, centre = _erf_start(cen, 0.4 * ramp, blocks, m)
+    if m < 2 * hw + 1:  # no window fits
+        fitted = np.full(2 * n, np.nan)
+    else:
+        v = _erf_samples(prof2, centre, lo2, hw)
+        fitted = _erf_solve(v, ok, c, s, centre, cen, hi2 - lo2, 1.0, blocks)
+    return _sides_k(lines, top, fitted, step, ramp, bounds, columns)
 
 
 @kernel
@@ -339,24 +378,44 @@ def _sides_k(
     lines: NDArray[np.intp],
     tops: NDArray[np.intp],
     cen: NDArray[np.float64],
-    contrast: NDArray[np.float64],
+    step: NDArray[np.float64],
+    ramp: NDArray[np.float64],
+    bounds: NDArray[np.intp],
     columns: bool,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.intp],
+]:
     """:func:`_scan`'s edge points (x, y) of both sides (``cen``: the rising sides'
     positions along the lines, then the falling sides'): the line index and its first
-    sample's position plus the edge's, whichever axis each is; and which lines have
-    both edges (finite) and contrast."""
+    sample's position plus the edge's, whichever axis each is; with each line's
+    contrast (the smaller side's summed step, ``step``) and ramp width (the wider
+    side's, ``ramp``). Only the lines with both edges (finite) and contrast, packed
+    strip after strip (``bounds``): the strips' ends among them last."""
     n = lines.shape[0]
     la, aa = (0, 1) if columns else (1, 0)
     side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
-    good = np.empty(n, dtype=np.bool_)
-    for i in range(n):
-        base = np.float64(tops[i])
-        side_a[i, la] = side_b[i, la] = np.float64(lines[i])
-        side_a[i, aa] = base + cen[i]
-        side_b[i, aa] = base + cen[n + i]
-        good[i] = np.isfinite(cen[i]) and np.isfinite(cen[n + i]) and contrast[i] > 0
-    return side_a, side_b, good
+    contrast, spread = np.empty(n), np.empty(n)
+    ends = np.empty(len(bounds), dtype=np.intp)
+    ends[0] = 0
+    k = 0
+    for s in range(len(bounds) - 1):
+        for i in range(bounds[s], bounds[s + 1]):
+            con = np.minimum(step[i], step[n + i])
+            if not (np.isfinite(cen[i]) and np.isfinite(cen[n + i]) and con > 0):
+                continue
+            base = np.float64(tops[i])
+            side_a[k, la] = side_b[k, la] = np.float64(lines[i])
+            side_a[k, aa] = base + cen[i]
+            side_b[k, aa] = base + cen[n + i]
+            contrast[k] = con
+            spread[k] = np.maximum(ramp[i], ramp[n + i])
+            k += 1
+        ends[s + 1] = k
+    return side_a[:k], side_b[:k], contrast[:k], spread[:k], ends
 
 
 #: The profiles' padding above their first sample (and its negation below the last).
