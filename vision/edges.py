@@ -149,12 +149,24 @@ def _scan_lines(
     margin_px: int,
     max_window: int,
 ) -> _Lines | None:
+    hw = np.asarray(half_width_px, dtype=np.float64)
+    if (
+        centre_px.dtype == np.float64
+        and centre_px.ndim == 2
+        and len(centre_px) > 1
+        and hw.shape == (len(centre_px),)
+    ):
+        # (the measurement's strips: in one call, unless the sort below is needed)
+        found, columns, lines, yc, half, top, reach = _lines_k(
+            centre_px, hw, shape[0], shape[1], margin_px + max_window
+        )
+        if found >= 0:
+            return _Lines(columns, lines, yc, half, top, reach) if found else None
     d = centre_px[-1] - centre_px[0]
     columns = bool(abs(d[0]) >= abs(d[1]))
     # The scan-line index axis (x) and the position along the lines (y), each as one
     # contiguous array ordered along x.
     x, y = (centre_px[:, 0], centre_px[:, 1]) if columns else (centre_px[:, 1], centre_px[:, 0])
-    hw = np.asarray(half_width_px, dtype=np.float64)
     ordered = False
     if hw.shape == x.shape and x.dtype == np.float64 and len(x) > 1:
         # x strictly monotonic (a strip's centre line along its scan-line axis): the
@@ -175,6 +187,28 @@ def _scan_lines(
     if reach < 0 or not len(lines):
         return None
     return _Lines(columns, lines, yc, half, top, reach)
+
+
+@kernel
+def _lines_k(
+    centre: NDArray[np.float64], hw: NDArray[np.float64], rows: int, cols: int, extra: int
+) -> tuple[
+    int, bool, NDArray[np.intp], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp], int
+]:
+    """:func:`_scan_lines` of a centre line ``centre`` (M, 2), M > 1, with a half width
+    per point ``hw`` in an image of ``rows`` x ``cols``: 1 and the scan lines
+    (:func:`_line_geometry`, the lines' axis ordered by :func:`_monotonic_k`), 0 when
+    none, -1 when that axis is not strictly monotonic (left to the caller's sort)."""
+    columns = abs(centre[-1, 0] - centre[0, 0]) >= abs(centre[-1, 1] - centre[0, 1])
+    a, b = (0, 1) if columns else (1, 0)
+    ordered, x, y, h = _monotonic_k(centre[:, a], centre[:, b], hw)
+    if not ordered:
+        e = np.empty(0, dtype=np.intp)
+        return -1, columns, e, np.empty(0), np.empty(0), e, -1
+    lines, yc, half, top, reach = _line_geometry(
+        x, y, h, rows if columns else cols, cols if columns else rows, extra
+    )
+    return (1 if reach >= 0 and len(lines) else 0), columns, lines, yc, half, top, reach
 
 
 @kernel
