@@ -667,6 +667,8 @@ def _smoothed(x: NDArray[np.float64], bounds: NDArray[np.intp]) -> NDArray[np.fl
         size = min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1
         h = size // 2
         for i in range(a, b):
+            if size == 9 and a + 4 <= i < b - 4:
+                continue  # (below: the window whole, in a loop LLVM vectorises)
             for o in range(size):
                 win[o] = x[min(max(i - h + o, a), b - 1)]
             if size == 9:
@@ -674,6 +676,16 @@ def _smoothed(x: NDArray[np.float64], bounds: NDArray[np.intp]) -> NDArray[np.fl
             else:
                 _sort(win[:size])
                 out[i] = win[h]
+        if size == 9:
+            # views indexed from 0 (numba's negative-index fix-up on i - 4 kept the
+            # loads gathers)
+            k = b - a - 8
+            q0, q1, q2 = x[a : a + k], x[a + 1 : a + 1 + k], x[a + 2 : a + 2 + k]
+            q3, q4, q5 = x[a + 3 : a + 3 + k], x[a + 4 : a + 4 + k], x[a + 5 : a + 5 + k]
+            q6, q7, q8 = x[a + 6 : a + 6 + k], x[a + 7 : a + 7 + k], x[a + 8 : a + 8 + k]
+            mid = out[a + 4 : a + 4 + k]
+            for j in range(k):
+                mid[j] = _median9_of(q0[j], q1[j], q2[j], q3[j], q4[j], q5[j], q6[j], q7[j], q8[j])
     return out
 
 
@@ -682,12 +694,28 @@ def _median9(p: NDArray[np.float64]) -> float:
     """The median of the 9 values ``p`` (no NaN), exactly and without branches: the
     median of the three sorted triples' largest minimum, median of medians and smallest
     maximum (a min/max network, checked on every 0-1 input)."""
-    lo, hi = min(p[0], p[1]), max(p[0], p[1])
-    a0, a1, a2 = min(lo, p[2]), min(hi, max(lo, p[2])), max(hi, p[2])
-    lo, hi = min(p[3], p[4]), max(p[3], p[4])
-    b0, b1, b2 = min(lo, p[5]), min(hi, max(lo, p[5])), max(hi, p[5])
-    lo, hi = min(p[6], p[7]), max(p[6], p[7])
-    c0, c1, c2 = min(lo, p[8]), min(hi, max(lo, p[8])), max(hi, p[8])
+    return _median9_of(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8])
+
+
+@kernel
+def _median9_of(
+    p0: float,
+    p1: float,
+    p2: float,
+    p3: float,
+    p4: float,
+    p5: float,
+    p6: float,
+    p7: float,
+    p8: float,
+) -> float:
+    """:func:`_median9` of nine values (no memory: inlined into a loop, it vectorises)."""
+    lo, hi = min(p0, p1), max(p0, p1)
+    a0, a1, a2 = min(lo, p2), min(hi, max(lo, p2)), max(hi, p2)
+    lo, hi = min(p3, p4), max(p3, p4)
+    b0, b1, b2 = min(lo, p5), min(hi, max(lo, p5)), max(hi, p5)
+    lo, hi = min(p6, p7), max(p6, p7)
+    c0, c1, c2 = min(lo, p8), min(hi, max(lo, p8)), max(hi, p8)
     first = max(max(a0, b0), c0)
     last = min(min(a2, b2), c2)
     lo, hi = min(a1, b1), max(a1, b1)
