@@ -512,12 +512,14 @@ def _scan_kernel(
         # index from 0: numba's negative-index fix-up on ``pad + k`` kept it scalar.
         inside = min(m, extent - top[i])
         pos, neg = buf[i, pad : pad + m], buf[n + i, pad : pad + m]
-        if columns:
+        if columns:  # a strided column: its loads one by one, the negation after
             col = image[top[i] :, lines[i]]
+            for k in range(inside):
+                pos[k] = np.int16(col[k])
+            for k in range(inside, m):
+                pos[k] = np.int16(col[inside - 1])
             for k in range(m):
-                v = np.int16(col[min(k, inside - 1)])
-                pos[k] = v
-                neg[k] = -v
+                neg[k] = -pos[k]
         else:  # a contiguous run of one image row (a loop LLVM vectorises)
             run = image[lines[i], top[i] :]
             for k in range(inside):
@@ -564,7 +566,7 @@ def _scan_kernel(
     ramp = np.empty(2 * n)
     steps = m - 1  # a line's steps
     for j in range(2 * n):
-        i = j % n
+        i = j if j < n else j - n  # (j % n: a 64-bit division a line)
         mid = yc[i] - top[i]
         centre = mid - half[i] if j < n else mid + half[i]
         tol = max(0.35 * half[i], 2.5)
@@ -574,11 +576,14 @@ def _scan_kernel(
         k1 = min(max(int(np.floor(centre + tol - 0.5)), 0), steps - 1)
         best = -32768
         at = k0
-        for k in range(k0, k1 + 1):
-            d = buf[j, pad + k + 1] - buf[j, pad + k]
-            if d > best:
-                best = d
-                at = k
+        row = buf[j, pad + k0 : pad + k1 + 2]
+        for k in range(k1 + 1 - k0):
+            # (selects, not branches: which step is the steepest so far is a coin flip
+            # on a noisy ramp, and its mispredictions were most of this loop's time)
+            d = np.int32(row[k + 1]) - np.int32(row[k])
+            up = d > best
+            best = d if up else best
+            at = k0 + k if up else at
         peak[j] = at
         # Ramp width (px) = contrast / steepest step: motion blur widens it; the
         # moment window grows with it so a blurred edge is still located at its centre.
