@@ -545,8 +545,9 @@ def _scan_kernel(
         k0 = min(max(int(np.floor(mid - h)) + 1, 0), m)
         k1 = min(max(int(np.ceil(mid + h)), 0), m)
         tot = 0
-        for k in range(min(k0, k1), max(k0, k1)):
-            tot += buf[i, pad + k]
+        inner = buf[i, pad + min(k0, k1) : pad + max(k0, k1)]  # (a view from 0: vectorised)
+        for k in range(len(inner)):
+            tot += inner[k]
         if k1 < k0:
             tot = -tot
         level_in[i] = tot / max(k1 - k0, 1)
@@ -643,12 +644,13 @@ def _window_edge(
     total = 0
     moment = 0
     total_v = 0
-    for o in range(-w, w + 1):
-        d = max(row[pad + p + o + 1] - row[pad + p + o], 0)  # (no branch to mispredict)
+    seg = row[pad + p - w : pad + p + w + 2]  # (a view from 0: no negative-index fix-up)
+    for q in range(2 * w + 1):
+        d = max(np.int64(seg[q + 1]) - np.int64(seg[q]), 0)  # (no branch to mispredict)
         total += d
-        moment += o * d
-        total_v += row[pad + p + o]
-    total_v += row[pad + p + w + 1]
+        moment += (q - w) * d
+        total_v += seg[q]
+    total_v += seg[2 * w + 1]
     step = np.float64(total)
     centre = p + 0.5 + moment / step
     if levels and p >= w and p + w + 1 < m and hi - lo > 1.0:
