@@ -581,7 +581,7 @@ def _scan_kernel(
         for k in range(k1 + 1 - k0):
             # (selects, not branches: which step is the steepest so far is a coin flip
             # on a noisy ramp, and its mispredictions were most of this loop's time)
-            d = np.int32(row[k + 1]) - np.int32(row[k])
+            d = int(row[k + 1]) - int(row[k])
             up = d > best
             best = d if up else best
             at = k0 + k if up else at
@@ -646,7 +646,7 @@ def _window_edge(
     total_v = 0
     seg = row[pad + p - w : pad + p + w + 2]  # (a view from 0: no negative-index fix-up)
     for q in range(2 * w + 1):
-        d = max(np.int64(seg[q + 1]) - np.int64(seg[q]), 0)  # (no branch to mispredict)
+        d = max(int(seg[q + 1]) - int(seg[q]), 0)  # (no branch to mispredict)
         total += d
         moment += (q - w) * d
         total_v += seg[q]
