@@ -491,14 +491,17 @@ def _extreme_wrap(
     fwd, bwd = np.empty(m), np.empty(m)
     for b in range(0, m, size):  # blocks of size: running extremes either way
         end = min(b + size, m)
-        fwd[b] = sign * ext[b]
-        for j in range(b + 1, end):
-            e = sign * ext[j]
-            fwd[j] = e if e > fwd[j - 1] else fwd[j - 1]
-        bwd[end - 1] = sign * ext[end - 1]
-        for j in range(end - 2, b - 1, -1):
-            e = sign * ext[j]
-            bwd[j] = e if e > bwd[j + 1] else bwd[j + 1]
+        # Both runs in one loop, each in a register: two independent chains of
+        # compares, not one chain at a time through a store and a load.
+        up, down = sign * ext[b], sign * ext[end - 1]
+        fwd[b], bwd[end - 1] = up, down
+        for t in range(1, end - b):
+            e = sign * ext[b + t]
+            up = e if e > up else up
+            fwd[b + t] = up
+            e = sign * ext[end - 1 - t]
+            down = e if e > down else down
+            bwd[end - 1 - t] = down
     out = np.empty(n)
     for i in range(n):
         a, b = bwd[i], fwd[i + size - 1]
