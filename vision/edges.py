@@ -7,8 +7,8 @@ or symmetric-blurred step edge). The points are mapped to the plane afterwards.
 
 The scan is compiled (:mod:`vision.jit`): one kernel call per strip for its scan lines'
 geometry, then for all strips of a frame one for every line's samples, steepest steps,
-levels and windows, and three for the erf fit; its numpy form was ~200 array calls of a
-few microseconds each (kept as the tests' reference, tests/vision/edges_reference.py).
+levels and windows, the erf fit and the edge points; its numpy form was ~200 array calls
+of a few microseconds each (kept as the tests' reference, tests/vision/edges_reference.py).
 """
 
 from __future__ import annotations
@@ -149,12 +149,24 @@ def _scan_lines(
     margin_px: int,
     max_window: int,
 ) -> _Lines | None:
+    hw = np.asarray(half_width_px, dtype=np.float64)
+    if (
+        centre_px.dtype == np.float64
+        and centre_px.ndim == 2
+        and len(centre_px) > 1
+        and hw.shape == (len(centre_px),)
+    ):
+        # (the measurement's strips: in one call, unless the sort below is needed)
+        found, columns, lines, yc, half, top, reach = _lines_k(
+            centre_px, hw, shape[0], shape[1], margin_px + max_window
+        )
+        if found >= 0:
+            return _Lines(columns, lines, yc, half, top, reach) if found else None
     d = centre_px[-1] - centre_px[0]
     columns = bool(abs(d[0]) >= abs(d[1]))
     # The scan-line index axis (x) and the position along the lines (y), each as one
     # contiguous array ordered along x.
     x, y = (centre_px[:, 0], centre_px[:, 1]) if columns else (centre_px[:, 1], centre_px[:, 0])
-    hw = np.asarray(half_width_px, dtype=np.float64)
     ordered = False
     if hw.shape == x.shape and x.dtype == np.float64 and len(x) > 1:
         # x strictly monotonic (a strip's centre line along its scan-line axis): the
@@ -175,6 +187,28 @@ def _scan_lines(
     if reach < 0 or not len(lines):
         return None
     return _Lines(columns, lines, yc, half, top, reach)
+
+
+@kernel
+def _lines_k(
+    centre: NDArray[np.float64], hw: NDArray[np.float64], rows: int, cols: int, extra: int
+) -> tuple[
+    int, bool, NDArray[np.intp], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp], int
+]:
+    """:func:`_scan_lines` of a centre line ``centre`` (M, 2), M > 1, with a half width
+    per point ``hw`` in an image of ``rows`` x ``cols``: 1 and the scan lines
+    (:func:`_line_geometry`, the lines' axis ordered by :func:`_monotonic_k`), 0 when
+    none, -1 when that axis is not strictly monotonic (left to the caller's sort)."""
+    columns = abs(centre[-1, 0] - centre[0, 0]) >= abs(centre[-1, 1] - centre[0, 1])
+    a, b = (0, 1) if columns else (1, 0)
+    ordered, x, y, h = _monotonic_k(centre[:, a], centre[:, b], hw)
+    if not ordered:
+        e = np.empty(0, dtype=np.intp)
+        return -1, columns, e, np.empty(0), np.empty(0), e, -1
+    lines, yc, half, top, reach = _line_geometry(
+        x, y, h, rows if columns else cols, cols if columns else rows, extra
+    )
+    return (1 if reach >= 0 and len(lines) else 0), columns, lines, yc, half, top, reach
 
 
 @kernel
@@ -292,12 +326,10 @@ def _scan(
 ) -> list[StripEdges]:
     lines = np.concatenate([g.lines for g in geos])
     sizes = [len(g.lines) for g in geos]
-    n = len(lines)
     bounds = np.array(list(itertools.accumulate(sizes, initial=0)), dtype=np.intp)
     reaches = np.array([g.reach for g in geos], dtype=np.intp)
-    levels = estimator in ("area", "erf")
     tops = np.concatenate([g.top for g in geos])
-    buf, peak, cen, step, ramp, lo2, hi2 = _scan_kernel(
+    args = (
         np.ascontiguousarray(image),
         columns,
         lines,
@@ -309,29 +341,70 @@ def _scan(
         margin_px,
         window,
         max_window,
-        levels,
+    )
+    if estimator == "erf":  # (the measurement's: the whole scan in one call)
+        side_a, side_b, contrast, spread, ends = _scan_erf_k(*args)
+    else:
+        buf, peak, cen, step, ramp, _, _ = _scan_kernel(*args, estimator == "area")
+        if estimator == "gauss3":
+            # Each line spans its own strip's 2 reach + 1 samples (see _scan_kernel).
+            pad, m = max_window, 2 * max(g.reach for g in geos) + 1
+            prof2 = buf[:, pad : pad + m]
+            g = edge_gauss3(np.subtract(prof2[:, 1:], prof2[:, :-1]), peak)
+            cen = np.where(np.isfinite(g), g, cen)
+        side_a, side_b, contrast, spread, ends = _sides_k(
+            lines, tops, cen, step, ramp, bounds, columns
+        )
+    return [
+        StripEdges(side_a[a:b], side_b[a:b], contrast[a:b], spread[a:b])
+        for a, b in itertools.pairwise(ends.tolist())
+    ]
+
+
+@kernel
+def _scan_erf_k(
+    image: NDArray[np.uint8],
+    columns: bool,
+    lines: NDArray[np.intp],
+    top: NDArray[np.intp],
+    yc: NDArray[np.float64],
+    half: NDArray[np.float64],
+    bounds: NDArray[np.intp],
+    reaches: NDArray[np.intp],
+    margin: int,
+    window: int,
+    max_window: int,
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.intp],
+]:
+    """:func:`_scan` with the erf estimator: :func:`_scan_kernel`, :func:`_erf_fit` on
+    its samples (one edge width per strip and side: lines n.. are the falling sides)
+    and :func:`_sides_k`, in one call (each call's arrays boxed and unboxed were a
+    tenth of the scan)."""
+    n = len(lines)
+    buf, _, cen, step, ramp, lo2, hi2 = _scan_kernel(
+        image, columns, lines, top, yc, half, bounds, reaches, margin, window, max_window, True
     )
     # Each line spans its own strip's 2 reach + 1 samples (see _scan_kernel).
-    pad, m = max_window, 2 * max(g.reach for g in geos) + 1
+    pad, m = max_window, 2 * reaches.max() + 1
     prof2 = buf[:, pad : pad + m]
-    if levels and estimator == "erf":
-        # One edge width per strip and side (lines n.. are the falling sides).
-        blocks = np.concatenate([bounds, bounds[1:] + n])
-        cen = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks)
-    elif estimator == "gauss3":
-        g = edge_gauss3(np.subtract(prof2[:, 1:], prof2[:, :-1]), peak)
-        cen = np.where(np.isfinite(g), g, cen)
-    contrast = np.minimum(step[:n], step[n:])
-    spread = np.maximum(ramp[:n], ramp[n:])
-    side_a, side_b, good = _sides_k(lines, tops, cen, contrast, columns)
-    out = []
-    for a, b in itertools.pairwise(bounds):
-        k = good[a:b]
-        if k.all():  # (the common case: slices, no copies)
-            out.append(StripEdges(side_a[a:b], side_b[a:b], contrast[a:b], spread[a:b]))
-        else:
-            out.append(StripEdges(side_a[a:b][k], side_b[a:b][k], contrast[a:b][k], spread[a:b][k]))
-    return out
+    nb = len(bounds) - 1
+    blocks = np.empty(2 * nb + 1, dtype=np.intp)
+    for b in range(nb + 1):
+        blocks[b] = bounds[b]
+    for b in range(1, nb + 1):
+        blocks[nb + b] = bounds[b] + n
+    hw, ok, c, s, centre = _erf_start(cen, 0.4 * ramp, blocks, m)
+    if m < 2 * hw + 1:  # no window fits
+        fitted = np.full(2 * n, np.nan)
+    else:
+        v = _erf_samples(prof2, centre, lo2, hw)
+        fitted = _erf_solve(v, ok, c, s, centre, cen, hi2 - lo2, 1.0, blocks)
+    return _sides_k(lines, top, fitted, step, ramp, bounds, columns)
 
 
 @kernel
@@ -339,24 +412,44 @@ def _sides_k(
     lines: NDArray[np.intp],
     tops: NDArray[np.intp],
     cen: NDArray[np.float64],
-    contrast: NDArray[np.float64],
+    step: NDArray[np.float64],
+    ramp: NDArray[np.float64],
+    bounds: NDArray[np.intp],
     columns: bool,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.intp],
+]:
     """:func:`_scan`'s edge points (x, y) of both sides (``cen``: the rising sides'
     positions along the lines, then the falling sides'): the line index and its first
-    sample's position plus the edge's, whichever axis each is; and which lines have
-    both edges (finite) and contrast."""
+    sample's position plus the edge's, whichever axis each is; with each line's
+    contrast (the smaller side's summed step, ``step``) and ramp width (the wider
+    side's, ``ramp``). Only the lines with both edges (finite) and contrast, packed
+    strip after strip (``bounds``): the strips' ends among them last."""
     n = lines.shape[0]
     la, aa = (0, 1) if columns else (1, 0)
     side_a, side_b = np.empty((n, 2)), np.empty((n, 2))
-    good = np.empty(n, dtype=np.bool_)
-    for i in range(n):
-        base = np.float64(tops[i])
-        side_a[i, la] = side_b[i, la] = np.float64(lines[i])
-        side_a[i, aa] = base + cen[i]
-        side_b[i, aa] = base + cen[n + i]
-        good[i] = np.isfinite(cen[i]) and np.isfinite(cen[n + i]) and contrast[i] > 0
-    return side_a, side_b, good
+    contrast, spread = np.empty(n), np.empty(n)
+    ends = np.empty(len(bounds), dtype=np.intp)
+    ends[0] = 0
+    k = 0
+    for s in range(len(bounds) - 1):
+        for i in range(bounds[s], bounds[s + 1]):
+            con = np.minimum(step[i], step[n + i])
+            if not (np.isfinite(cen[i]) and np.isfinite(cen[n + i]) and con > 0):
+                continue
+            base = np.float64(tops[i])
+            side_a[k, la] = side_b[k, la] = np.float64(lines[i])
+            side_a[k, aa] = base + cen[i]
+            side_b[k, aa] = base + cen[n + i]
+            contrast[k] = con
+            spread[k] = np.maximum(ramp[i], ramp[n + i])
+            k += 1
+        ends[s + 1] = k
+    return side_a[:k], side_b[:k], contrast[:k], spread[:k], ends
 
 
 #: The profiles' padding above their first sample (and its negation below the last).
@@ -419,12 +512,14 @@ def _scan_kernel(
         # index from 0: numba's negative-index fix-up on ``pad + k`` kept it scalar.
         inside = min(m, extent - top[i])
         pos, neg = buf[i, pad : pad + m], buf[n + i, pad : pad + m]
-        if columns:
+        if columns:  # a strided column: its loads one by one, the negation after
             col = image[top[i] :, lines[i]]
+            for k in range(inside):
+                pos[k] = np.int16(col[k])
+            for k in range(inside, m):
+                pos[k] = np.int16(col[inside - 1])
             for k in range(m):
-                v = np.int16(col[min(k, inside - 1)])
-                pos[k] = v
-                neg[k] = -v
+                neg[k] = -pos[k]
         else:  # a contiguous run of one image row (a loop LLVM vectorises)
             run = image[lines[i], top[i] :]
             for k in range(inside):
@@ -450,8 +545,9 @@ def _scan_kernel(
         k0 = min(max(int(np.floor(mid - h)) + 1, 0), m)
         k1 = min(max(int(np.ceil(mid + h)), 0), m)
         tot = 0
-        for k in range(min(k0, k1), max(k0, k1)):
-            tot += buf[i, pad + k]
+        inner = buf[i, pad + min(k0, k1) : pad + max(k0, k1)]  # (a view from 0: vectorised)
+        for k in range(len(inner)):
+            tot += inner[k]
         if k1 < k0:
             tot = -tot
         level_in[i] = tot / max(k1 - k0, 1)
@@ -471,7 +567,7 @@ def _scan_kernel(
     ramp = np.empty(2 * n)
     steps = m - 1  # a line's steps
     for j in range(2 * n):
-        i = j % n
+        i = j if j < n else j - n  # (j % n: a 64-bit division a line)
         mid = yc[i] - top[i]
         centre = mid - half[i] if j < n else mid + half[i]
         tol = max(0.35 * half[i], 2.5)
@@ -481,11 +577,14 @@ def _scan_kernel(
         k1 = min(max(int(np.floor(centre + tol - 0.5)), 0), steps - 1)
         best = -32768
         at = k0
-        for k in range(k0, k1 + 1):
-            d = buf[j, pad + k + 1] - buf[j, pad + k]
-            if d > best:
-                best = d
-                at = k
+        row = buf[j, pad + k0 : pad + k1 + 2]
+        for k in range(k1 + 1 - k0):
+            # (selects, not branches: which step is the steepest so far is a coin flip
+            # on a noisy ramp, and its mispredictions were most of this loop's time)
+            d = int(row[k + 1]) - int(row[k])
+            up = d > best
+            best = d if up else best
+            at = k0 + k if up else at
         peak[j] = at
         # Ramp width (px) = contrast / steepest step: motion blur widens it; the
         # moment window grows with it so a blurred edge is still located at its centre.
@@ -545,12 +644,13 @@ def _window_edge(
     total = 0
     moment = 0
     total_v = 0
-    for o in range(-w, w + 1):
-        d = max(row[pad + p + o + 1] - row[pad + p + o], 0)  # (no branch to mispredict)
+    seg = row[pad + p - w : pad + p + w + 2]  # (a view from 0: no negative-index fix-up)
+    for q in range(2 * w + 1):
+        d = max(int(seg[q + 1]) - int(seg[q]), 0)  # (no branch to mispredict)
         total += d
-        moment += o * d
-        total_v += row[pad + p + o]
-    total_v += row[pad + p + w + 1]
+        moment += (q - w) * d
+        total_v += seg[q]
+    total_v += seg[2 * w + 1]
     step = np.float64(total)
     centre = p + 0.5 + moment / step
     if levels and p >= w and p + w + 1 < m and hi - lo > 1.0:
@@ -574,6 +674,8 @@ def _smoothed(x: NDArray[np.float64], bounds: NDArray[np.intp]) -> NDArray[np.fl
         size = min(9, 2 * ((b - a) // 2) + 1) if b - a > 2 else 1
         h = size // 2
         for i in range(a, b):
+            if size == 9 and a + 4 <= i < b - 4:
+                continue  # (below: the window whole, in a loop LLVM vectorises)
             for o in range(size):
                 win[o] = x[min(max(i - h + o, a), b - 1)]
             if size == 9:
@@ -581,6 +683,16 @@ def _smoothed(x: NDArray[np.float64], bounds: NDArray[np.intp]) -> NDArray[np.fl
             else:
                 _sort(win[:size])
                 out[i] = win[h]
+        if size == 9:
+            # views indexed from 0 (numba's negative-index fix-up on i - 4 kept the
+            # loads gathers)
+            k = b - a - 8
+            q0, q1, q2 = x[a : a + k], x[a + 1 : a + 1 + k], x[a + 2 : a + 2 + k]
+            q3, q4, q5 = x[a + 3 : a + 3 + k], x[a + 4 : a + 4 + k], x[a + 5 : a + 5 + k]
+            q6, q7, q8 = x[a + 6 : a + 6 + k], x[a + 7 : a + 7 + k], x[a + 8 : a + 8 + k]
+            mid = out[a + 4 : a + 4 + k]
+            for j in range(k):
+                mid[j] = _median9_of(q0[j], q1[j], q2[j], q3[j], q4[j], q5[j], q6[j], q7[j], q8[j])
     return out
 
 
@@ -589,12 +701,28 @@ def _median9(p: NDArray[np.float64]) -> float:
     """The median of the 9 values ``p`` (no NaN), exactly and without branches: the
     median of the three sorted triples' largest minimum, median of medians and smallest
     maximum (a min/max network, checked on every 0-1 input)."""
-    lo, hi = min(p[0], p[1]), max(p[0], p[1])
-    a0, a1, a2 = min(lo, p[2]), min(hi, max(lo, p[2])), max(hi, p[2])
-    lo, hi = min(p[3], p[4]), max(p[3], p[4])
-    b0, b1, b2 = min(lo, p[5]), min(hi, max(lo, p[5])), max(hi, p[5])
-    lo, hi = min(p[6], p[7]), max(p[6], p[7])
-    c0, c1, c2 = min(lo, p[8]), min(hi, max(lo, p[8])), max(hi, p[8])
+    return _median9_of(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8])
+
+
+@kernel
+def _median9_of(
+    p0: float,
+    p1: float,
+    p2: float,
+    p3: float,
+    p4: float,
+    p5: float,
+    p6: float,
+    p7: float,
+    p8: float,
+) -> float:
+    """:func:`_median9` of nine values (no memory: inlined into a loop, it vectorises)."""
+    lo, hi = min(p0, p1), max(p0, p1)
+    a0, a1, a2 = min(lo, p2), min(hi, max(lo, p2)), max(hi, p2)
+    lo, hi = min(p3, p4), max(p3, p4)
+    b0, b1, b2 = min(lo, p5), min(hi, max(lo, p5)), max(hi, p5)
+    lo, hi = min(p6, p7), max(p6, p7)
+    c0, c1, c2 = min(lo, p8), min(hi, max(lo, p8)), max(hi, p8)
     first = max(max(a0, b0), c0)
     last = min(min(a2, b2), c2)
     lo, hi = min(a1, b1), max(a1, b1)

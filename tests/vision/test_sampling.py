@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 from tests.vision.sampling_numpy import bilinear_numpy
 from vision.errors import ParameterError
@@ -16,8 +17,10 @@ from vision.sampling import (
     along_across,
     bilinear,
     median,
+    median_bounded,
     median_in_place,
     numpy_sum,
+    order_stats_bounded,
 )
 
 
@@ -98,3 +101,39 @@ def test_along_across_is_numpys_broadcast_expression_exactly() -> None:
         got = along_across(o, u, v, a, b)
         assert got.shape == (n, 2)
         np.testing.assert_array_equal(got, want)
+
+
+def test_bounded_order_statistics_are_the_sorted_values_and_refuse_what_is_out_of_range() -> None:
+    rng = np.random.default_rng(14)
+    for k in range(2000):
+        n = int(rng.integers(1, 700))
+        x: NDArray[np.float64] = (
+            rng.uniform(0, 256, n),  # every bucket
+            np.round(rng.normal(80, 4, n)).clip(0, 255),  # many ties in few buckets
+            rng.integers(0, 3, n) * 0.25,  # bucket edges only
+            np.abs(rng.normal(0, 2, n)),  # crowded low buckets (image differences)
+            np.full(n, 255.99),  # the range's last bucket
+        )[k % 5].astype(np.float64)
+        k1 = int(rng.integers(0, n))
+        k2 = int(rng.integers(k1, n))
+        before = x.copy()
+        ok, a, b = order_stats_bounded(x, k1, k2, 4.0, 1024)
+        s = np.sort(x)
+        assert ok and (a, b) == (s[k1], s[k2]), (k, n, k1, k2)
+        np.testing.assert_array_equal(x, before)  # left as it was
+        assert median_bounded(x, 8.0, 2048) == float(np.median(x)), k
+        np.testing.assert_array_equal(x, before)
+    # out of the range (above, at its end, negative, NaN, infinite): refused, and the
+    # median then taken by selection (NaN for a NaN)
+    for bad in (256.0, 300.0, -1e-9, math.nan, math.inf):
+        x = np.array([1.0, 2.0, bad, 3.0])
+        ok, a, b = order_stats_bounded(x, 0, 3, 4.0, 1024)
+        assert not ok and math.isnan(a) and math.isnan(b)
+        want = float(np.median(x))
+        got = median_bounded(x.copy(), 4.0, 1024)
+        assert got == want or (math.isnan(got) and math.isnan(want)), bad
+    # ranks outside the array: refused, not read past it
+    assert not order_stats_bounded(np.zeros(0), 0, 0, 4.0, 1024)[0]
+    assert not order_stats_bounded(np.ones(3), 1, 3, 4.0, 1024)[0]
+    assert not order_stats_bounded(np.ones(3), 2, 1, 4.0, 1024)[0]
+    assert math.isnan(median_bounded(np.zeros(0), 4.0, 1024))
