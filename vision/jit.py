@@ -65,16 +65,17 @@ def kernel(fn: F) -> F:
 
 
 def load_cached() -> int:
-    """Load the machine code of every kernel made so far (the modules imported) that its
-    cache holds, for each signature cached, now rather than at each kernel's first call;
-    the number loaded. A process that forks workers loads them once for all of them
+    """Load the machine code of every kernel made so far (the modules imported) that
+    Python code may call (:func:`_entry_kernels`) and its cache holds, for each
+    signature cached, now rather than at each kernel's first call; the number loaded. A
+    process that forks workers loads them once for all of them
     (:mod:`pipelines.process.frames`: ~0.4 s a worker otherwise). Only what the cache
     holds for this machine and source is asked for: a cold cache loads nothing, and its
     kernels compile at their first call, as before; so does any kernel whose cache numba
     cannot be asked (its cache's internals are not public API: they are used here only
     to read which signatures are cached)."""
     loaded = 0
-    for dispatcher in _KERNELS:
+    for dispatcher in _entry_kernels():
         try:
             cache = dispatcher._cache
             magic = dispatcher.targetctx.codegen().magic_tuple()
@@ -89,6 +90,56 @@ def load_cached() -> int:
             dispatcher.compile(sig)
             loaded += 1
     return loaded
+
+
+def _entry_kernels() -> list[Any]:
+    """The kernels Python code may call: those no kernel calls, and those a Python
+    function or method of the kernels' packages names. A kernel called only by other
+    kernels needs no machine code of its own: numba compiles a callee into each caller's
+    code (cached with it), so loading the callee's own (a third of vision's cached
+    kernels, ~0.2 s) is wasted. A kernel left out that Python calls after all is loaded
+    at its first call, as without this."""
+    names = {k.py_func.__name__ for k in _KERNELS}
+    by_kernels: set[str] = set()
+    for k in _KERNELS:
+        by_kernels.update(_names_in(k.py_func.__code__) & names)
+    packages = {k.py_func.__module__.partition(".")[0] for k in _KERNELS}
+    by_python: set[str] = set()
+    for name, module in list(sys.modules.items()):
+        if name.partition(".")[0] in packages and module is not None:
+            for value in list(vars(module).values()):
+                for code in _codes_of(value):
+                    by_python.update(_names_in(code) & names)
+    return [
+        k
+        for k in _KERNELS
+        if k.py_func.__name__ not in by_kernels or k.py_func.__name__ in by_python
+    ]
+
+
+def _names_in(code: Any) -> set[str]:
+    """The global and attribute names a code object and the code nested in it use."""
+    found = set(code.co_names)
+    for const in code.co_consts:
+        if hasattr(const, "co_names"):
+            found |= _names_in(const)
+    return found
+
+
+def _codes_of(value: Any) -> list[Any]:
+    """The code objects of a Python function, or of a class's functions, methods and
+    properties (a kernel, numba's dispatcher, has none: its Python function is
+    ``py_func``)."""
+    if hasattr(value, "py_func"):  # a kernel
+        return []
+    if isinstance(value, type):
+        return [c for member in vars(value).values() for c in _codes_of(member)]
+    if isinstance(value, (staticmethod, classmethod)):
+        return _codes_of(value.__func__)
+    if isinstance(value, property):
+        return [c for f in (value.fget, value.fset) if f is not None for c in _codes_of(f)]
+    code = getattr(getattr(value, "__wrapped__", value), "__code__", None)
+    return [code] if code is not None else []
 
 
 def cached(package: Path | None = None) -> bool:

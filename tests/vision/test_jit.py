@@ -110,6 +110,35 @@ def test_load_cached_loads_what_the_cache_holds_and_compiles_nothing(tmp_path: P
     assert _run(LOAD, tmp_path).split() == ["1", "1", "0", "2.0", "0"]
 
 
+ENTRY = """
+import kpkg.caller as c
+from vision.jit import load_cached
+load_cached()
+print(*(len(k.overloads) for k in (c.inner, c.both, c.outer)))
+print(c.outer(1.0), c.py(1.0), sum(c.outer._cache_misses.values()), len(c.inner.overloads))
+"""
+
+
+def test_load_cached_leaves_out_kernels_only_kernels_call(tmp_path: Path) -> None:
+    # a kernel called only by kernels is compiled into its callers' code: its own
+    # machine code is never run, and the fork server does not load it; a kernel that
+    # Python code calls (too) is loaded
+    pkg = tmp_path / "kpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "caller.py").write_text(
+        "from vision.jit import kernel\n\n"
+        "@kernel\ndef inner(x):\n    return x + 1.0\n\n"
+        "@kernel\ndef both(x):\n    return x * 3.0\n\n"
+        "@kernel\ndef outer(x):\n    return inner(x) * 2.0 + both(x)\n\n"
+        "def py(x):\n    return both(x)\n"
+    )
+    warm = "import kpkg.caller as c; print(c.outer(1.0), c.py(1.0))"
+    assert _run(warm, tmp_path) == "7.0 3.0"  # compiles and caches all three
+    # inner not loaded, both and outer loaded; outer runs from the cache, inner unneeded
+    assert _run(ENTRY, tmp_path).splitlines() == ["0 1 1", "7.0 3.0 0 0"]
+
+
 def test_digest_follows_every_source(tmp_path: Path) -> None:
     (tmp_path / "a.py").write_text("x = 1\n")
     (tmp_path / "sub").mkdir()

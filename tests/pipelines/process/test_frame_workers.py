@@ -392,10 +392,11 @@ def test_a_cache_cold_when_the_workers_started_measures_the_first_frames_here(
 
 
 def _kernels_in_this_worker() -> tuple[int, int]:
-    """(kernels whose cache holds them, of those already loaded) in the calling process."""
-    from vision.jit import _KERNELS
+    """(kernels Python may call whose cache holds them, of those already loaded) in the
+    calling process."""
+    from vision.jit import _entry_kernels
 
-    cached = [k for k in _KERNELS if k._cache._cache_file._load_index()]
+    cached = [k for k in _entry_kernels() if k._cache._cache_file._load_index()]
     return len(cached), sum(1 for k in cached if k.overloads)
 
 
@@ -406,10 +407,10 @@ def _kernels_in_this_worker() -> tuple[int, int]:
 def test_workers_start_with_the_cached_kernels_loaded() -> None:
     # the fork server loads vision's cached kernels once; each worker forked from it has
     # them before its first frame instead of loading them itself (~0.4 s a worker)
-    from vision.centreline import lag1_sums
+    from vision.sampling import bilinear_points
 
     frames_module.stop_fork_server()  # a server started by an earlier test loaded less
-    lag1_sums(np.arange(8.0), 8)  # at least this one is cached
+    bilinear_points(np.zeros((4, 4), np.uint8), np.ones((1, 2)))  # at least this one is cached
     started = frames_module.start_workers(2)
     assert started is not None and started.pool is not None
     try:
