@@ -79,11 +79,24 @@ _Setup = tuple[str, tuple[Calibration, tuple[float, ...], str, float | None, boo
 _Items = list[tuple[int, int, bytes]]
 
 
+#: How much lower the frame workers' scheduling priority is than the main process's
+#: (``nice`` increment). The main process's threads (feeding the workers, the
+#: recording's previews, the simulation) then run when they have work and the workers
+#: take the rest: with both at one priority the previews thread, held back on the busy
+#: cores, finished ~0.3-0.6 s after the frames on one core while the other idled (60 s
+#: run, region previews); now the run ends on both cores measuring frames.
+WORKER_NICE = 5
+
+
 def _init_worker() -> None:
     # Ctrl-C reaches the whole process group: the main process stops the run and the
     # workers with it (:func:`_abandon`); a worker interrupted on its own printed a
     # "Process ...:" line and a traceback over the run's one "error: interrupted".
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        os.nice(WORKER_NICE)
+    except (AttributeError, OSError):  # pragma: no cover - a platform without nice
+        pass
     # One thread per worker: the workers already use every core.
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
@@ -581,49 +594,12 @@ def stated_sds(
     return (total[0], total[1], total[2]), cal
 
 
-_Sds = tuple[tuple[float, float, float], tuple[float, float, float]]
-
-
-class StatedSds:
-    """The measured frames' :func:`stated_sds` with ``calibration``, worked out as the
-    frames come (an ``on_measured`` of :func:`measure_frames`, while the rest are
-    measured) instead of by :func:`as_arrays` after them all (0.4 ms a frame: a bench
-    minute's 900 frames held the run 0.4 s)."""
-
-    def __init__(self, calibration: Calibration | None) -> None:
-        self.calibration = calibration
-        self._sds: list[tuple[int, _Sds | None]] = []
-
-    def __call__(self, frames: Iterable[MeasuredFrame]) -> None:
-        cal = self.calibration
-        self._sds.extend(
-            (f.sequence, stated_sds(f.measurement, cal) if f.measurement.ok else None)
-            for f in frames
-        )
-
-    def of(
-        self, frames: list[MeasuredFrame], calibration: Calibration | None
-    ) -> list[_Sds | None] | None:
-        """Those of ``frames`` (None for a frame not measured), or None unless they are
-        what was given, in that order, with the same ``calibration``."""
-        if calibration is not self.calibration or len(frames) != len(self._sds):
-            return None
-        if any(f.sequence != seq for f, (seq, _) in zip(frames, self._sds, strict=True)):
-            return None
-        return [sds for _, sds in self._sds]
-
-
 def as_arrays(
-    frames: list[MeasuredFrame],
-    calibration: Calibration | None = None,
-    stated: StatedSds | None = None,
+    frames: list[MeasuredFrame], calibration: Calibration | None = None
 ) -> dict[str, np.ndarray]:
     """Columns of the measured frames (NaN where a frame gave no measurement). The
     standard uncertainties include the ``calibration``'s error when it is given
-    (:func:`stated_sds`); its share alone is in the ``calibration_*`` columns.
-    ``stated``: the frames' uncertainties worked out already, used when they are these
-    frames' with this calibration."""
-    known = stated.of(frames, calibration) if stated is not None else None
+    (:func:`stated_sds`); its share alone is in the ``calibration_*`` columns."""
     n = len(frames)
     s = max((f.measurement.stations_m.size for f in frames), default=0)
     sd_keys = ("hub_angle_sd_rad", "tip_lateral_sd_m", "tip_longitudinal_sd_m")
@@ -643,8 +619,7 @@ def as_arrays(
             cols["hub_angle_rad"][i] = m.hub_angle_rad
             cols["tip_lateral_m"][i] = m.tip_lateral_m
             cols["tip_longitudinal_m"][i] = m.tip_longitudinal_m
-            sds = known[i] if known is not None else None
-            total, cal = sds if sds is not None else stated_sds(m, calibration)
+            total, cal = stated_sds(m, calibration)
             for k, t, c in zip(sd_keys, total, cal, strict=True):
                 cols[k][i] = t
                 cols[f"calibration_{k}"][i] = c

@@ -29,7 +29,6 @@ from pipelines.process.failures import FailureSummary, summarise_failures
 from pipelines.process.frames import (
     MeasuredFrame,
     StartedWorkers,
-    StatedSds,
     as_arrays,
     measure_frames,
     start_workers,
@@ -422,14 +421,6 @@ def _process_run(
         # a fresh kernel cache: the first frames wait ~25 s for numba's compile; say so
         cached = started.kernels_cached if started is not None else kernels_cached()
         label = "measure" if cached else "measure (compiling, first run: ~25 s)"
-        # each frame's stated uncertainties, worked out as it comes
-        stated = StatedSds(calibration)
-
-        def measured(batch: list[MeasuredFrame]) -> None:
-            stated(batch)
-            if on_measured is not None:
-                on_measured(batch)
-
         with Progress(label, total=run.frame_count) as bar:
             frames = measure_frames(
                 iter_frames(log_path),
@@ -438,10 +429,10 @@ def _process_run(
                 workers=workers,
                 progress=bar.update,
                 max_tip_uncertainty_m=max_tip_uncertainty_m,
-                on_measured=measured,
+                on_measured=on_measured,
                 started=started,
             )
-        cols = as_arrays(frames, calibration, stated)
+        cols = as_arrays(frames, calibration)
         failures = _report_failures(log_path, frames)
         hub = measured_hub([f.measurement for f in frames], calibration)
         if (note := offset_warning(hub, rig)) is not None:

@@ -100,39 +100,6 @@ def test_the_frames_handed_on_carry_their_bytes_and_those_returned_do_not(worker
     assert all(f.data is None for f in out)
 
 
-def test_the_stated_uncertainties_worked_out_as_the_frames_come_are_used(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    from pipelines.process.frames import MeasuredFrame, StatedSds, as_arrays
-    from vision import FrameMeasurement
-
-    frames = [
-        MeasuredFrame(k, k, FrameMeasurement(ok=True, tip_lateral_m=0.1 * k, tip_lateral_std_m=k))
-        for k in range(1, 4)
-    ] + [MeasuredFrame(9, 9, FrameMeasurement(ok=False, reason="no beam"))]
-    stated = StatedSds(CAL)
-    stated(frames[:2])
-    stated(frames[2:])
-    before = as_arrays(frames, CAL)
-
-    def not_again(*args: Any) -> Any:
-        raise AssertionError("worked out again")
-
-    monkeypatch.setattr(frames_module, "stated_sds", not_again)
-    got = as_arrays(frames, CAL, stated)
-    assert got.keys() == before.keys()
-    for key, column in before.items():
-        np.testing.assert_array_equal(got[key], column)
-    # other frames, another order or another calibration: worked out again
-    for args in (
-        (frames[::-1], CAL),
-        (frames[:2], CAL),
-        (frames, Calibration(np.array(IMG), np.array(PLANE))),
-    ):
-        with pytest.raises(AssertionError, match="worked out again"):
-            as_arrays(*args, stated)
-
-
 @pytest.mark.parametrize("poll_s", [frames_module.POLL_S, 1e6])
 def test_a_worker_killed_mid_run_is_an_error(
     poll_s: float, monkeypatch: pytest.MonkeyPatch
@@ -419,6 +386,22 @@ def test_workers_start_with_the_cached_kernels_loaded() -> None:
         started.close()
     assert cached >= 1 and loaded == cached
     assert _workers() == []
+
+
+def _priority() -> int:
+    return os.getpriority(os.PRIO_PROCESS, 0)
+
+
+def test_workers_run_at_a_lower_priority_than_the_main_process() -> None:
+    # the main process's threads (previews, simulation, feeding the workers) run first
+    # when they have work, so the run does not end on one core finishing them
+    started = frames_module.start_workers(2)
+    assert started is not None and started.pool is not None
+    try:
+        worker = started.pool.submit(_priority).result(timeout=120)
+    finally:
+        started.close()
+    assert worker == min(_priority() + frames_module.WORKER_NICE, 19)
 
 
 def _sigint_ignored() -> bool:
