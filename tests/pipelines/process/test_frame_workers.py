@@ -267,7 +267,8 @@ def test_workers_started_ahead_measure_the_frames_and_stop() -> None:
     # started and never used (the run stopped before its frames): stopped by close()
     unused = start_workers(2)
     assert unused is not None
-    assert _workers()
+    # asked for in a thread (start_workers returns at once): forked once asked for
+    assert unused.join() is unused and _workers()
     unused.close()
     unused.close()
     assert _workers() == []
