@@ -398,12 +398,7 @@ def _scan_erf_k(
         blocks[b] = bounds[b]
     for b in range(1, nb + 1):
         blocks[nb + b] = bounds[b] + n
-    hw, ok, c, s, centre = _erf_start(cen, 0.4 * ramp, blocks, m)
-    if m < 2 * hw + 1:  # no window fits
-        fitted = np.full(2 * n, np.nan)
-    else:
-        v = _erf_samples(prof2, centre, lo2, hw)
-        fitted = _erf_solve(v, ok, c, s, centre, cen, hi2 - lo2, 1.0, blocks)
+    fitted = _erf_fit(prof2, cen, lo2, hi2, 0.4 * ramp, 1.0, blocks)
     return _sides_k(lines, top, fitted, step, ramp, bounds, columns)
 
 
@@ -860,6 +855,7 @@ _WIDTH_LINES = 96
 _CONVERGED_PX = 1e-3
 
 
+@kernel
 def _erf_fit(
     prof: NDArray[Any],
     start: NDArray[np.float64],
@@ -876,8 +872,7 @@ def _erf_fit(
     lines (at most ``_WIDTH_LINES``), whose median width is the block's ``s`` (a symmetric
     edge's position and width are orthogonal parameters, so the position hardly depends
     on the width's small error). The position: ``c``-only Gauss-Newton steps on every
-    line with that width. (Three kernels: only the one that reads the profiles is
-    compiled for each of their types.)"""
+    line with that width."""
     m = prof.shape[1]
     half, ok, c, s, centre = _erf_start(start, sigma0, bounds, m)
     if m < 2 * half + 1:  # no window fits
