@@ -62,18 +62,26 @@ def _run(code: str, root: Path) -> str:
     return out.stdout.strip()
 
 
+def _package(root: Path, **modules: str) -> Path:
+    """A package ``kpkg`` under ``root`` with the modules given (name: source)."""
+    pkg = root / "kpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    for name, source in modules.items():
+        (pkg / f"{name}.py").write_text(source)
+    return pkg
+
+
 @pytest.mark.slow
 def test_a_changed_callee_compiles_its_callers_again(tmp_path: Path) -> None:
     # numba keys a cached kernel on its own file: the caller's cache would keep the
     # callee's old code. The package's digest in the cache directory's name prevents it.
-    pkg = tmp_path / "kpkg"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
     callee = "from vision.jit import kernel\n\n@kernel\ndef f(x):\n    return x + {}\n"
-    (pkg / "callee.py").write_text(callee.format("1.0"))
-    (pkg / "caller.py").write_text(
-        "from vision.jit import kernel\nfrom kpkg.callee import f\n\n"
-        "@kernel\ndef g(x):\n    return f(x) * 2.0\n"
+    pkg = _package(
+        tmp_path,
+        callee=callee.format("1.0"),
+        caller="from vision.jit import kernel\nfrom kpkg.callee import f\n\n"
+        "@kernel\ndef g(x):\n    return f(x) * 2.0\n",
     )
     code = "import kpkg.caller as c; print(c.g(1.0))"
     assert _run(code, tmp_path) == "4.0"
@@ -98,11 +106,8 @@ print(len(f.overloads), sum(f._cache_hits.values()), sum(f._cache_misses.values(
 def test_load_cached_loads_what_the_cache_holds_and_compiles_nothing(tmp_path: Path) -> None:
     # what a fork server does before it forks the frame workers: every cached kernel
     # loaded at once; a cold cache loads nothing and compiles nothing (the first call does)
-    pkg = tmp_path / "kpkg"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
-    (pkg / "callee.py").write_text(
-        "from vision.jit import kernel\n\n@kernel\ndef f(x):\n    return x + 1.0\n"
+    _package(
+        tmp_path, callee="from vision.jit import kernel\n\n@kernel\ndef f(x):\n    return x + 1.0\n"
     )
     # cold: none loaded, no overload made, none compiled until the call (one then)
     assert _run(LOAD, tmp_path).split() == ["0", "0", "0", "2.0", "1"]
@@ -123,15 +128,13 @@ def test_load_cached_leaves_out_kernels_only_kernels_call(tmp_path: Path) -> Non
     # a kernel called only by kernels is compiled into its callers' code: its own
     # machine code is never run, and the fork server does not load it; a kernel that
     # Python code calls (too) is loaded
-    pkg = tmp_path / "kpkg"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
-    (pkg / "caller.py").write_text(
-        "from vision.jit import kernel\n\n"
+    _package(
+        tmp_path,
+        caller="from vision.jit import kernel\n\n"
         "@kernel\ndef inner(x):\n    return x + 1.0\n\n"
         "@kernel\ndef both(x):\n    return x * 3.0\n\n"
         "@kernel\ndef outer(x):\n    return inner(x) * 2.0 + both(x)\n\n"
-        "def py(x):\n    return both(x)\n"
+        "def py(x):\n    return both(x)\n",
     )
     warm = "import kpkg.caller as c; print(c.outer(1.0), c.py(1.0))"
     assert _run(warm, tmp_path) == "7.0 3.0"  # compiles and caches all three
