@@ -240,13 +240,14 @@ def _segment_blocks(layout: JpegLayout, segments: NDArray[np.intp]) -> NDArray[n
 def _respliced(
     whole: JpegLayout, canvas: NDArray[np.uint8], changed: NDArray[np.bool_]
 ) -> bytes | None:
-    """The JPEG of ``canvas`` (reduced, padded), given the JPEG of an earlier canvas
-    (``whole``, its restart segments) that differs only in the ``changed`` blocks
-    ([block row, block col] of the reduced image): the segments holding changed blocks
-    encoded again (side by side, the same tables), the others taken
-    as they were. A baseline scan's segments are independent (the DC predictions reset
-    at each restart), so this is the bytes of encoding the whole canvas; None when the
-    tables came out different (then the caller encodes the whole)."""
+    """The JPEG of ``canvas`` (reduced, padded; what lies past the image's edges is
+    overwritten), given the JPEG of an earlier canvas (``whole``, its restart segments)
+    that differs only in the ``changed`` blocks ([block row, block col] of the reduced
+    image): the segments holding changed blocks encoded again (side by side, the same
+    tables), the others taken as they were. A baseline scan's segments are independent
+    (the DC predictions reset at each restart), so this is the bytes of encoding the
+    whole canvas; None when the tables came out different (then the caller encodes the
+    whole)."""
     seg_w, seg_h = whole.segment_px
     if seg_h != _BLOCK:  # our own gray encode's: one 8 x 8 block an MCU
         return None
@@ -258,6 +259,13 @@ def _respliced(
     redo = segments_of_blocks(whole, changed[:rows, :cols])
     if redo.size == 0:
         return whole.data
+    # past the image's right and bottom edges, its last column and row again: what the
+    # encoder pads a part block with (not what the canvas holds there)
+    h, w = whole.height_px, whole.width_px
+    if h < rows * _BLOCK:
+        canvas[h : rows * _BLOCK, : cols * _BLOCK] = canvas[h - 1, : cols * _BLOCK]
+    if w < cols * _BLOCK:
+        canvas[: rows * _BLOCK, w : cols * _BLOCK] = canvas[: rows * _BLOCK, w - 1 : w]
     # the segments side by side, about _ROW_PX wide (the encoder's cost is per row, as
     # the decoder's), the last row filled up with its last segment again
     across = min(max(1, _ROW_PX // seg_w), redo.size)

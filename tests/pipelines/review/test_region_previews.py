@@ -55,18 +55,20 @@ def _jpeg(
     return bytes(buf)
 
 
-def _measured(angle_rad: float, ok: bool = True) -> FrameMeasurement:
-    """A measurement that places a hub from (300, 100) and a beam on from it."""
+def _measured(
+    angle_rad: float, ok: bool = True, back: tuple[float, float] = (300.0, 100.0)
+) -> FrameMeasurement:
+    """A measurement that places a hub from ``back`` and a beam on from it."""
     if not ok:
         return FrameMeasurement(ok=False, reason="too noisy")
-    back = np.array([300.0, 100.0])
-    clamp = back + 80.0 * np.array([math.cos(angle_rad), math.sin(angle_rad)])
+    origin = np.array(back)
+    clamp = origin + 80.0 * np.array([math.cos(angle_rad), math.sin(angle_rad)])
     s = np.linspace(0.0, 400.0, 12)
     line = clamp + s[:, None] * np.array([math.cos(angle_rad), math.sin(angle_rad)])
     line[:, 0] += 0.0002 * s**2  # bent
     return FrameMeasurement(
         ok=True,
-        hub_line_px=np.vstack([back, clamp]),
+        hub_line_px=np.vstack([origin, clamp]),
         centreline_px=line,
         centreline_plane_m=line / PX_M,
         hub_width_m=30.0 / PX_M,
@@ -183,19 +185,37 @@ def test_a_region_needs_the_beam_and_hub_placed() -> None:
         RegionPreviews(3)
 
 
-@pytest.mark.parametrize(("r", "colour"), [(2, None), (4, None), (2, "4:2:0"), (4, "4:2:0")])
+@pytest.mark.parametrize(
+    ("r", "colour", "size", "interval"),
+    [
+        (2, None, (1024, 640), 8),
+        (4, None, (1024, 640), 8),
+        (2, "4:2:0", (1024, 640), 4),
+        (4, "4:2:0", (1024, 640), 4),
+        # the reduced frame not whole blocks (510 x 318, 255 x 159), the region at its
+        # right and bottom edges: the encoder's padding there is its edge's pixels
+        (2, None, (1020, 636), 2),
+        (4, None, (1020, 636), 4),
+    ],
+)
 def test_the_region_spliced_into_the_whole_frame_is_the_whole_frame_encoded(
-    r: int, colour: str | None, monkeypatch: pytest.MonkeyPatch
+    r: int,
+    colour: str | None,
+    size: tuple[int, int],
+    interval: int,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    # 1024 x 640 at 1/r: the reduced frame's restart segments tile it, so only the
-    # segments the region touches are encoded again
-    frames = [_jpeg(300 + k, 8 if colour is None else 4, (1024, 640), colour) for k in range(8)]
+    # at 1/r the reduced frame's restart segments tile it, so only the segments the
+    # region touches are encoded again
+    frames = [_jpeg(300 + k, interval, size, colour) for k in range(8)]
+    back = (300.0, 100.0) if size == (1024, 640) else (640.0, 330.0)
+    measured = [_measured(0.5 + 0.07 * k, back=back) for k in range(len(frames))]
     spliced, whole = RegionPreviews(r), RegionPreviews(r)
-    a = [spliced.show(d, "jpeg", _measured(0.5 + 0.07 * k)) for k, d in enumerate(frames)]
+    a = [spliced.show(d, "jpeg", m) for d, m in zip(frames, measured, strict=True)]
     assert spliced.spliced_frames == spliced.region_frames == len(frames) - 1
     import pipelines.review.previews as previews
 
     monkeypatch.setattr(previews, "_respliced", lambda *args: None)
-    b = [whole.show(d, "jpeg", _measured(0.5 + 0.07 * k)) for k, d in enumerate(frames)]
+    b = [whole.show(d, "jpeg", m) for d, m in zip(frames, measured, strict=True)]
     assert whole.spliced_frames == 0 and whole.region_frames == len(frames) - 1
     assert a == b
