@@ -231,7 +231,8 @@ def whole_preview(data: bytes, reduction: int) -> tuple[bytes, str, float]:
 
 #: A centre line is drawn through fewer points, none further than this (drawn px) from it.
 _SIMPLIFY_PX = 0.25
-#: The region is drawn at this many px a block's side, then taken block by block.
+#: The region is drawn at this many px a block's side (a block's row of them a 32-bit
+#: word), then taken block by block.
 _DRAWN_PER_BLOCK = 4
 
 
@@ -286,12 +287,10 @@ def region_blocks(
         n = math.ceil(half_px / unit + slack + 0.71 - 0.29 + 0.05)
         fixed = (at * 16.0).round().astype(np.int32)
         cv2.polylines(mask, [fixed], False, 1, thickness=min(2 * n + 1, 32767), shift=4)
-    # a block where any of its drawn px is: its rows OR-ed, then its columns
-    rowed = mask.reshape(rows, k, cols * k)
-    anyrow = rowed[:, 0].copy()
-    for i in range(1, k):
-        anyrow |= rowed[:, i]
-    return _any_across(anyrow.view(bool), k)
+    # a block where any of its drawn px is: a block's row of them is one word, its
+    # rows' words OR-ed
+    words = mask.view(np.uint32).reshape(rows, k, cols)
+    return np.asarray((words[:, 0] | words[:, 1] | words[:, 2] | words[:, 3]) != 0)
 
 
 _UINT_OF_BYTES = {2: np.uint16, 4: np.uint32, 8: np.uint64}
@@ -334,6 +333,8 @@ def _respliced(
         return None
     if canvas.shape[0] < rows * _BLOCK or canvas.shape[1] < cols * _BLOCK:
         return None
+    if canvas.shape[1] % 8 or not canvas.flags.c_contiguous:
+        return None  # not whole 8-byte words a row
     redo = segments_of_blocks(whole, changed[:rows, :cols])
     if redo.size == 0:
         return whole.data
@@ -350,11 +351,14 @@ def _respliced(
     part = redo
     if redo.size % across:
         part = np.concatenate((redo, np.full(-redo.size % across, redo[-1], dtype=np.intp)))
-    grid = canvas[: rows * _BLOCK, : cols * _BLOCK].reshape(rows, _BLOCK, whole.per_row, seg_w)
-    segs = grid.transpose(0, 2, 1, 3)[part // whole.per_row, part % whole.per_row]
+    # in 8-byte words (a segment's row is interval of them): a quarter as many to index
+    words = seg_w // 8
+    grid = canvas[: rows * _BLOCK].view(np.uint64)[:, : cols * _BLOCK // 8]
+    grid = grid.reshape(rows, _BLOCK, whole.per_row, words)
+    segs = grid[part // whole.per_row, :, part % whole.per_row]  # [segment, row, word]
     stack = np.ascontiguousarray(
-        segs.reshape(-1, across, _BLOCK, seg_w).transpose(0, 2, 1, 3).reshape(-1, across * seg_w)
-    )
+        segs.reshape(-1, across, _BLOCK, words).transpose(0, 2, 1, 3).reshape(-1, across * words)
+    ).view(np.uint8)
     new = jpeg_layout(encode(stack, "jpeg", QUALITY, restart_interval_mcu=whole.interval))
     if new is None or new.starts.size != part.size:
         return None
