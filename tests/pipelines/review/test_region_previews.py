@@ -1,6 +1,7 @@
-"""The recording's reduced frames made from the measured region (``RegionPreviews``): each
-reduced block is this frame's or the last whole frame's, exactly, and every block under
-the measured beam and hub (this frame's and the last whole frame's) is this frame's.
+"""The recording's reduced frames made from the measured region (``RegionPreviews``): every
+reduced block near the measured beam and hub is this frame's, exactly, and each other
+block an earlier frame's since the last whole one, exactly, clear of that frame's beam
+and hub (no ghost), the whole frame's region decoded once.
 
 The frames are noise written by ``cv2`` directly (not beambench's renderer or codec
 defaults): 960 x 632 px, a restart marker every 6 MCUs, quality 77, each frame different
@@ -18,13 +19,19 @@ import numpy as np
 import pytest
 
 from pipelines.review.previews import (
+    MARGIN_PX,
     WHOLE_EVERY_FRAMES,
     RegionPreviews,
     region_blocks,
 )
 from vision import FrameMeasurement
 from vision.codec import preview
-from vision.jpeg_regions import jpeg_layout
+from vision.jpeg_regions import (
+    JpegLayout,
+    jpeg_layout,
+    reduced_canvas_shape,
+    segments_of_blocks,
+)
 
 W, H = 960, 632  # the reduced frame's segments do not tile it: encoded whole
 PX_M = 2000.0  # px per m along the fabricated centre lines
@@ -55,18 +62,20 @@ def _jpeg(
     return bytes(buf)
 
 
-def _measured(angle_rad: float, ok: bool = True) -> FrameMeasurement:
-    """A measurement that places a hub from (300, 100) and a beam on from it."""
+def _measured(
+    angle_rad: float, ok: bool = True, back: tuple[float, float] = (300.0, 100.0)
+) -> FrameMeasurement:
+    """A measurement that places a hub from ``back`` and a beam on from it."""
     if not ok:
         return FrameMeasurement(ok=False, reason="too noisy")
-    back = np.array([300.0, 100.0])
-    clamp = back + 80.0 * np.array([math.cos(angle_rad), math.sin(angle_rad)])
+    origin = np.array(back)
+    clamp = origin + 80.0 * np.array([math.cos(angle_rad), math.sin(angle_rad)])
     s = np.linspace(0.0, 400.0, 12)
     line = clamp + s[:, None] * np.array([math.cos(angle_rad), math.sin(angle_rad)])
     line[:, 0] += 0.0002 * s**2  # bent
     return FrameMeasurement(
         ok=True,
-        hub_line_px=np.vstack([back, clamp]),
+        hub_line_px=np.vstack([origin, clamp]),
         centreline_px=line,
         centreline_plane_m=line / PX_M,
         hub_width_m=30.0 / PX_M,
@@ -81,7 +90,26 @@ def _blocks(image: np.ndarray) -> np.ndarray:
 
 
 def _decoded(data: bytes) -> np.ndarray:
-    return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    assert image is not None
+    return np.asarray(image)
+
+
+def _near(m: FrameMeasurement, rows: int, cols: int, block_px: int) -> np.ndarray:
+    """The blocks ([rows, cols] of ``block_px`` full-size px a side) with a pixel within
+    :data:`MARGIN_PX` of the measured hub's or beam's edges, less a pixel: from distances
+    to the lines drawn thin at full size (``region_blocks`` must hold at least these)."""
+    hub, line = np.asarray(m.hub_line_px), np.asarray(m.centreline_px)
+    h, w = max(rows * block_px, H + 64), max(cols * block_px, W + 64)
+    near = np.zeros((h, w), bool)
+    for pts, width in ((hub, m.hub_search_width_m), (line, m.beam_width_m)):
+        half = (0.5 * width * PX_M if math.isfinite(width) else 0.0) + MARGIN_PX
+        image = np.full((h, w), 255, np.uint8)
+        fixed = np.round(pts * 16).astype(np.int32).reshape(-1, 1, 2)
+        cv2.polylines(image, [fixed], False, 0, 1, cv2.LINE_8, shift=4)
+        near |= cv2.distanceTransform(image, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) <= half - 1
+    cut = near[: rows * block_px, : cols * block_px]
+    return np.asarray(cut.reshape(rows, block_px, cols, block_px).any(axis=(1, 3)))
 
 
 @pytest.mark.parametrize(
@@ -97,7 +125,7 @@ def _decoded(data: bytes) -> np.ndarray:
         (4, 8, False, "4:4:4"),  # 64 x 8 px
     ],
 )
-def test_each_block_is_this_frame_or_the_last_whole_one(
+def test_each_block_is_this_frames_or_an_earlier_ones_clear_of_its_beam(
     r: int, interval: int, failures: bool, colour: str | None
 ) -> None:
     shower = RegionPreviews(r)
@@ -105,48 +133,93 @@ def test_each_block_is_this_frame_or_the_last_whole_one(
     layout = jpeg_layout(frames[0])
     mcu_w = 16 if colour in ("4:2:0", "4:2:2") else 8
     assert layout is not None and layout.segment_px[0] == interval * mcu_w
-    angles = [0.9 + 0.05 * k for k in range(len(frames))]
     oks = [True] * len(frames)
     if failures:
         oks[1] = oks[2] = False  # not measured: shown whole, not kept as the whole frame
-    last_whole = None
-    last_angle = math.nan
+    # the beam swings on, faster in turn: its earlier places are left behind
+    measured = [_measured(0.9 + 0.02 * k * k, ok) for k, ok in enumerate(oks)]
+    mine = [_blocks(_decoded(preview(data, r))) for data in frames]
+    rows, cols = mine[0].shape[:2]
+    near = [_near(m, rows, cols, 8 * r) if m.ok else None for m in measured]
+    last_whole = -1
     kinds = []
-    for k, (data, angle, ok) in enumerate(zip(frames, angles, oks, strict=True)):
-        out, encoding, scale = shower.show(data, "jpeg", _measured(angle, ok))
+    for k, (data, m) in enumerate(zip(frames, measured, strict=True)):
+        out, encoding, scale = shower.show(data, "jpeg", m)
         assert encoding == "jpeg" and scale == 1.0 / r
-        got, mine = _decoded(out), _decoded(preview(data, r))
-        assert got.shape == mine.shape == (math.ceil(H / r), math.ceil(W / r))
-        if np.array_equal(got, mine):
+        got = _decoded(out)
+        assert got.shape == (math.ceil(H / r), math.ceil(W / r))
+        gb = _blocks(got)
+        if np.array_equal(gb, mine[k]):
             kinds.append("whole")
-            if ok:
-                last_whole, last_angle = got, angle
+            if m.ok:
+                last_whole = k
             continue
         kinds.append("region")
-        assert last_whole is not None
-        gb, mb, lb = _blocks(got), _blocks(mine), _blocks(last_whole)
-        this = np.all(gb == mb, axis=(2, 3))
-        old = np.all(gb == lb, axis=(2, 3))
-        assert np.all(this | old), f"frame {k}: a block from neither frame"
-        # the measured beam and hub of this frame and of the last whole frame: this frame's
-        shape = layout.blocks_shape  # (ceil(H / 8), W // 8) gray, whole MCUs colour
-        for a in (angle, last_angle):
-            under = region_blocks(_measured(a), shape)
-            assert under is not None
-            red = np.zeros(this.shape, bool)
-            rows, cols = np.nonzero(under)
-            rows, cols = rows // r, cols // r
-            keep = (rows < red.shape[0]) & (cols < red.shape[1])
-            red[rows[keep], cols[keep]] = True
-            assert np.all(this[red]), f"frame {k}: the region shows another frame"
-        assert 0.05 < np.mean(this) < 0.8  # most of the frame is the last whole one
-    if failures:
-        assert kinds[:4] == ["whole", "whole", "whole", "region"]
-    # whole at the start and then every WHOLE_EVERY_FRAMES-th frame since the last
-    first = kinds.index("region")
-    assert kinds[first + WHOLE_EVERY_FRAMES - 1] == "whole"
-    assert kinds.count("whole") == 2 + (2 if failures else 0)
+        assert 0 <= last_whole and k - last_whole < WHOLE_EVERY_FRAMES
+        this = np.all(gb == mine[k], axis=(2, 3))
+        # the measured beam and hub, and a margin about them: this frame's
+        assert np.all(this[near[k]]), f"frame {k}: the region shows another frame"
+        # every other block is an earlier frame's since the last whole one, clear of
+        # that frame's beam and hub: no ghost of them
+        clear = this.copy()
+        for j in range(last_whole, k):
+            near_j = near[j]
+            if near_j is not None:
+                clear |= np.all(gb == mine[j], axis=(2, 3)) & ~near_j
+        assert np.all(clear), f"frame {k}: a block from no frame, or an old beam's"
+        assert 0.02 < np.mean(this) < 0.8  # most of the frame is earlier frames'
+    # whole at the start and then every WHOLE_EVERY_FRAMES-th frame (measured or not)
+    assert [k for k, kind in enumerate(kinds) if kind == "whole"] == (
+        [0, 1, 2, WHOLE_EVERY_FRAMES] if failures else [0, WHOLE_EVERY_FRAMES]
+    )
     assert shower.whole_frames == kinds.count("whole")
+
+
+def _segments_under(layout: JpegLayout, region: np.ndarray, r: int) -> int:
+    """How many segments hold any of the reduced blocks given ([row, col] of the 1/``r``
+    image's 8 x 8 blocks)."""
+    rows, cols = layout.blocks_shape
+    full = np.repeat(np.repeat(region, r, axis=0), r, axis=1)[:rows, :cols]
+    return len(segments_of_blocks(layout, full))
+
+
+@pytest.mark.parametrize(("r", "interval", "colour"), [(2, 6, None), (4, 4, "4:2:0")])
+def test_a_moved_beam_leaves_no_ghost_and_its_old_place_is_decoded_once(
+    r: int, interval: int, colour: str | None
+) -> None:
+    frames = [_jpeg(500 + k, interval, colour=colour) for k in range(5)]
+    layout = jpeg_layout(frames[0])
+    assert layout is not None
+    before, after = _measured(0.4), _measured(1.4)  # the beam moved by a radian
+    shower = RegionPreviews(r)
+    shown = [
+        _blocks(_decoded(shower.show(d, "jpeg", before if k == 0 else after)[0]))
+        for k, d in enumerate(frames)
+    ]
+    assert shower.whole_frames == 1 and shower.region_frames == len(frames) - 1
+    mine = [_blocks(_decoded(preview(d, r))) for d in frames]
+    rows, cols = mine[0].shape[:2]
+    canvas_rows, canvas_cols = reduced_canvas_shape(layout, r)
+    grid = (math.ceil(canvas_rows / 8), canvas_cols // 8)
+    now = region_blocks(after, grid, 8 * r)
+    then = region_blocks(before, grid, 8 * r)
+    assert now is not None and then is not None
+    # where the beam was and is no longer: the first frame after shows it, then that
+    # frame's pixels stay (where no segment of this frame's region is decoded again),
+    # never the whole frame's beam
+    left = _near(before, rows, cols, 8 * r) & ~now[:rows, :cols]
+    assert left.sum() > 20
+    for k in range(1, len(frames)):
+        this, first = (np.all(shown[k] == mine[j], axis=(2, 3))[left] for j in (k, 1))
+        assert np.all(this | first), f"frame {k}"
+        assert np.mean(first) > 0.5
+        assert not np.any(np.all(shown[k] == mine[0], axis=(2, 3))[left]), f"frame {k}"
+    # the whole frame's region decoded once, on the first frame after it
+    n = len(layout.starts)
+    decoded = [round(f * n) for f in shower.region_fraction]
+    alone, both = _segments_under(layout, now, r), _segments_under(layout, now | then, r)
+    assert alone < both
+    assert decoded == [both] + [alone] * (len(frames) - 2)
 
 
 def test_frames_it_cannot_decode_in_parts_are_whole() -> None:
@@ -179,23 +252,50 @@ def test_a_region_needs_the_beam_and_hub_placed() -> None:
     tip = np.asarray(m.centreline_px)[-1]
     assert under[int(tip[1] // 8), int((tip[0] + 40) // 8)]
     assert not under[0, -1]
+    # every block within the margin, at any block size, and not many more
+    for block_px in (8, 16, 32):
+        rows, cols = math.ceil(H / block_px), math.ceil(W / block_px)
+        for angle in np.linspace(0.0, 2 * math.pi, 13):
+            m = _measured(float(angle))
+            near = _near(m, rows, cols, block_px)
+            got = region_blocks(m, (rows, cols), block_px)
+            assert got is not None and np.all(got[near]), (block_px, angle)
+            assert got.sum() < 1.6 * near.sum(), (block_px, angle)
     with pytest.raises(ValueError, match="reduction"):
         RegionPreviews(3)
 
 
-@pytest.mark.parametrize(("r", "colour"), [(2, None), (4, None), (2, "4:2:0"), (4, "4:2:0")])
+@pytest.mark.parametrize(
+    ("r", "colour", "size", "interval"),
+    [
+        (2, None, (1024, 640), 8),
+        (4, None, (1024, 640), 8),
+        (2, "4:2:0", (1024, 640), 4),
+        (4, "4:2:0", (1024, 640), 4),
+        # the reduced frame not whole blocks (510 x 318, 255 x 159), the region at its
+        # right and bottom edges: the encoder's padding there is its edge's pixels
+        (2, None, (1020, 636), 2),
+        (4, None, (1020, 636), 4),
+    ],
+)
 def test_the_region_spliced_into_the_whole_frame_is_the_whole_frame_encoded(
-    r: int, colour: str | None, monkeypatch: pytest.MonkeyPatch
+    r: int,
+    colour: str | None,
+    size: tuple[int, int],
+    interval: int,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    # 1024 x 640 at 1/r: the reduced frame's restart segments tile it, so only the
-    # segments the region touches are encoded again
-    frames = [_jpeg(300 + k, 8 if colour is None else 4, (1024, 640), colour) for k in range(8)]
+    # at 1/r the reduced frame's restart segments tile it, so only the segments the
+    # region touches are encoded again
+    frames = [_jpeg(300 + k, interval, size, colour) for k in range(8)]
+    back = (300.0, 100.0) if size == (1024, 640) else (640.0, 330.0)
+    measured = [_measured(0.5 + 0.07 * k, back=back) for k in range(len(frames))]
     spliced, whole = RegionPreviews(r), RegionPreviews(r)
-    a = [spliced.show(d, "jpeg", _measured(0.5 + 0.07 * k)) for k, d in enumerate(frames)]
+    a = [spliced.show(d, "jpeg", m) for d, m in zip(frames, measured, strict=True)]
     assert spliced.spliced_frames == spliced.region_frames == len(frames) - 1
     import pipelines.review.previews as previews
 
     monkeypatch.setattr(previews, "_respliced", lambda *args: None)
-    b = [whole.show(d, "jpeg", _measured(0.5 + 0.07 * k)) for k, d in enumerate(frames)]
+    b = [whole.show(d, "jpeg", m) for d, m in zip(frames, measured, strict=True)]
     assert whole.spliced_frames == 0 and whole.region_frames == len(frames) - 1
     assert a == b
