@@ -505,12 +505,14 @@ class Measurer:
             return None
         gap = joint.rotation_rad - ref.rotation_rad
         var_gap = ref.rotation_sd_rad**2 - joint.rotation_sd_rad**2
+        var_tip = ref.fit.tip_sd**2 - joint.fit.tip_sd**2
+        if var_gap <= 0 or var_tip <= 0 or gap * gap > 9.0 * var_gap:
+            return None
+        # The tip's difference after the hub angle's: the modes' centre line is
+        # tabulated when first read (1601 samples), which a refused axis spares.
         centre_at = np.array([amax])
         d_tip = float(joint.fit.centre(centre_at)[0]) - float(ref.fit.centre(centre_at)[0])
-        var_tip = ref.fit.tip_sd**2 - joint.fit.tip_sd**2
-        if var_gap <= 0 or var_tip <= 0:
-            return None
-        if gap * gap > 9.0 * var_gap or d_tip * d_tip > 9.0 * var_tip:
+        if d_tip * d_tip > 9.0 * var_tip:
             return None
         # The modes' own error, in two parts. (1) Their truncation: the change that two
         # more modes make, fitted on the same inliers in the same frame (the whole

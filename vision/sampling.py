@@ -152,6 +152,73 @@ def median_bounded(w: NDArray[np.float64], scale: float, buckets: int) -> float:
     return hi if n % 2 else 0.5 * (lo + hi)
 
 
+#: :func:`median_nonnegative`'s buckets: a float's bits shifted right by this many (its
+#: exponent and the top 4 bits of its mantissa: 16 buckets a binade), and at most this many
+#: buckets between a set's smallest value and its largest (128 binades).
+_BITS_SHIFT = 48
+_BITS_BUCKETS = 2048
+
+
+@kernel
+def median_nonnegative(w: NDArray[np.float64]) -> float:
+    """:func:`median_in_place` of ``w`` (its value, bit for bit: the same order
+    statistics, the same mean of two), ``w`` left as it is, when its values are finite
+    and positive and span at most 128 binades (absolute residuals); else by
+    :func:`median_in_place`, which partitions ``w``.
+
+    The order statistics by counting sort's first half on the values' bits, as
+    :func:`order_stats_bounded` on a fixed scale: a positive float's bits, read as an
+    integer, rise with it, so the top 16 bits count the values into buckets of known
+    rank; the middle ones are then selected among their bucket's few values alone (a
+    residual's median bucket holds ~2 % of them). A quickselect's compares on noise
+    are coin flips, a mispredicted branch each: a joint fit's scales of its ~1800
+    residuals took 20 us a solve by it, 5 us by this."""
+    n = w.size
+    if n == 0:
+        return math.nan
+    bits = w.view(np.int64)
+    low, high = bits[0] >> _BITS_SHIFT, bits[0] >> _BITS_SHIFT
+    for i in range(n):
+        key = bits[i] >> _BITS_SHIFT
+        low, high = min(low, key), max(high, key)
+    # zero and negative values (sign bit: a negative key), infinities and NaNs (the
+    # largest exponent) or too wide a span: the quickselect
+    if low <= 0 or high >= 0x7FF0 or high - low >= _BITS_BUCKETS:
+        return median_in_place(w)
+    counts = np.zeros(high - low + 1, dtype=np.int64)
+    for i in range(n):
+        counts[(bits[i] >> _BITS_SHIFT) - low] += 1
+    k = n // 2
+    b, below = 0, 0
+    while below + counts[b] <= k:
+        below += counts[b]
+        b += 1
+    target = b + low
+    tmp = np.empty(counts[b])
+    j = 0
+    for i in range(n):
+        tmp[j] = w[i]  # (overwritten by the next value when not in the bucket)
+        j += int((bits[i] >> _BITS_SHIFT) == target)
+        if j == counts[b]:
+            break
+    kk = k - below
+    select_kth(tmp, kk, j)
+    hi = tmp[kk]
+    if n % 2:
+        return hi
+    # the (k - 1)-th: the largest before the k-th in its bucket, or of the buckets below
+    lo = -1.0
+    if kk > 0:
+        lo = tmp[0]
+        for i in range(1, kk):
+            lo = max(lo, tmp[i])
+    else:
+        for i in range(n):
+            v = w[i]
+            lo = max(lo, v if (bits[i] >> _BITS_SHIFT) < target else -1.0)
+    return 0.5 * (lo + hi)
+
+
 @kernel
 def numpy_sum(a: NDArray[np.float64], n: int) -> float:
     """``a[:n].sum()`` as numpy sums a contiguous float64 array, bit for bit: halves

@@ -19,6 +19,7 @@ from vision.sampling import (
     median,
     median_bounded,
     median_in_place,
+    median_nonnegative,
     numpy_sum,
     order_stats_bounded,
 )
@@ -137,3 +138,28 @@ def test_bounded_order_statistics_are_the_sorted_values_and_refuse_what_is_out_o
     assert not order_stats_bounded(np.ones(3), 1, 3, 4.0, 1024)[0]
     assert not order_stats_bounded(np.ones(3), 2, 1, 4.0, 1024)[0]
     assert math.isnan(median_bounded(np.zeros(0), 4.0, 1024))
+
+
+def test_median_of_nonnegative_values_by_their_bits_is_numpys_and_leaves_them() -> None:
+    rng = np.random.default_rng(19)
+    for n in (1, 2, 3, 4, 7, 8, 250, 251, 1800, 1801):
+        # residuals' magnitudes; many ties (whole buckets of one value, the two middle
+        # ones in different buckets); a spread over 600 binades, beyond the buckets
+        for x in (
+            np.abs(rng.normal(size=n)) * 1e-5,
+            rng.integers(1, 4, size=n).astype(np.float64),
+            np.where(np.arange(n) < n // 2, 1.0, 2.0) + 0.0,
+            10.0 ** rng.uniform(-300, 300, size=n),
+        ):
+            before = x.copy()
+            got = median_nonnegative(x)
+            assert np.float64(got).tobytes() == np.median(before).tobytes(), n
+            if np.ptp(np.log2(before)) < 100:
+                np.testing.assert_array_equal(x, before)  # counted, not partitioned
+    # zero, negative, subnormal, infinite and NaN values: the quickselect's median
+    for bad in (0.0, -1e-9, 5e-324, math.inf, math.nan):
+        x = np.array([1.0, 2.0, bad, 3.0, 0.5])
+        want = float(np.median(x))
+        got = median_nonnegative(x)
+        assert got == want or (math.isnan(got) and math.isnan(want)), bad
+    assert math.isnan(median_nonnegative(np.zeros(0)))
