@@ -365,19 +365,22 @@ def _sim_overlays(
         clamp[:, None, :] + x[:, :, None] * axis[:, None, :] + lat[:, :, None] * normal[:, None, :]
     )
     sizes = np.array([p.along.size for p in parts], np.int64)
-    frame = np.repeat(np.arange(w), sizes)
     along = np.concatenate([p.along for p in parts]) if w else np.zeros(0)
     across = np.concatenate([p.across for p in parts]) if w else np.zeros(0)
-    inside = (along >= x[frame, 0]) & (along <= x[frame, -1])
-    along, across, frame = along[inside], across[inside], frame[inside]
-    counts = np.bincount(frame, minlength=w).astype(np.int64)
-    drawn = counts >= 2  # fewer: frame_overlay draws no difference
-    keep = drawn[frame]
-    along, across, frame = along[keep], across[keep], frame[keep]
-    counts[~drawn] = 0
+    # the centre line's points within the simulated beam's span
+    inside = (along >= np.repeat(x[:, 0], sizes)) & (along <= np.repeat(x[:, -1], sizes))
+    frame = np.repeat(np.arange(w), sizes)
+    counts = np.bincount(frame[inside], minlength=w).astype(np.int64)
+    counts[counts < 2] = 0  # fewer: frame_overlay draws no difference
+    keep = inside & np.repeat(counts > 0, sizes)
+    along, across = along[keep], across[keep]
     sim_across = _not_a_knot_cubics(x, lat, along, counts)
     shown = sim_across + DIFFERENCE_GAIN * (across - sim_across)
-    diff = clamp[frame] + along[:, None] * axis[frame] + shown[:, None] * normal[frame]
+    diff = (
+        np.repeat(clamp, counts, axis=0)
+        + along[:, None] * np.repeat(axis, counts, axis=0)
+        + shown[:, None] * np.repeat(normal, counts, axis=0)
+    )
     return beam.reshape(-1, 2), diff, counts
 
 
