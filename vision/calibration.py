@@ -161,6 +161,13 @@ class Calibration:
         ideal = map_points(self._ideal_from_plane, points_m)
         return ideal if self._lens.identity else self._lens.distort(ideal)
 
+    @property
+    def to_px_pointwise(self) -> bool:
+        """Whether :meth:`to_px` maps each point by its own arithmetic (the homography's
+        kernel, then the lens's formula or none): then mapping many frames' points in one
+        call gives, bit for bit, what a call for each frame gives."""
+        return self._lens.distorts_pointwise
+
     def to_plane(self, points_px: ArrayLike) -> NDArray[np.float64]:
         """Raw image pixels (N, 2), (x, y), to beam-plane points (N, 2), m (the inverse
         of :meth:`to_px`, :func:`px_to_plane` as it)."""

@@ -206,6 +206,13 @@ class Lens:
             self._f = np.array([matrix[0, 0], matrix[1, 1]])
             self._pp = np.array([matrix[0, 2], matrix[1, 2]])
 
+    @property
+    def distorts_pointwise(self) -> bool:
+        """Whether :meth:`distort` maps each point by its own arithmetic (no lens, or its
+        formula here), so one call for many points gives, bit for bit, what a call for
+        each few would; through OpenCV (a matrix product over the call) it is not promised."""
+        return self.identity or self._numpy
+
     def distort(self, ideal_px: NDArray[np.float64]) -> NDArray[np.float64]:
         """Ideal (undistorted) pixels (N, 2) -> observed pixels (N, 2)."""
         pts = np.asarray(ideal_px, dtype=np.float64).reshape(-1, 2)

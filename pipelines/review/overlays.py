@@ -1,7 +1,7 @@
 """Streams a processed run to Rerun: frames with overlays, series, Fig. 11, events.
 
-Computes every overlay first (pixels from the measurement and the simulation), then
-hands them to ``pipelines.review.viewer.RunViewer`` — the only module that talks to Rerun.
+Computes the pixels (from the measurement and the simulation), then hands them to
+``pipelines.review.viewer.RunViewer`` — the only module that talks to Rerun.
 """
 
 from __future__ import annotations
@@ -9,14 +9,16 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
+from scipy.linalg import solve_banded
 
 from daq.imageinfo import image_encoding
 from daq.log import LogError, iter_frames
@@ -24,8 +26,9 @@ from pipelines.process.frames import MeasuredFrame
 from pipelines.process.run import Processed
 from pipelines.review.display import DIFFERENCE_GAIN
 from pipelines.review.previews import PREVIEW_MODES, RegionPreviews, region_note, whole_preview
-from pipelines.review.viewer import FrameOverlay, RunViewer
+from pipelines.review.viewer import OVERLAY_ENTITIES, FrameOverlay, OverlayColumns, RunViewer
 from vision import FrameMeasurement, VisionError
+from vision.calibration import Calibration
 from vision.codec import preview
 
 FloatArray = NDArray[np.float64]
@@ -107,6 +110,52 @@ def not_a_knot_cubic(x: FloatArray, y: FloatArray, at: FloatArray) -> FloatArray
     return np.asarray(y[k] + t * (m[k] + t * (c2 + t * c3)), float)
 
 
+def spline_at(x: FloatArray, y: FloatArray, at: FloatArray) -> FloatArray:
+    """scipy's ``CubicSpline(x, y, axis=0)(at)`` bit for bit, for ``x`` (n,) of 4 or more
+    finite increasing times and finite ``y`` (n, ...) (otherwise it is scipy's own call):
+    its slopes from the same not-a-knot system and solver, but the polynomials made only
+    in the intervals of ``at`` (scipy makes all n - 1: a bench minute's simulation, 24 000
+    steps of 21 stations, twice, was most of the overlays' time after the frames), each
+    evaluated as scipy's ``PPoly`` does (powers by repeated products, summed from the
+    constant term)."""
+    x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
+    n = x.shape[0]
+    dx = np.diff(x) if x.ndim == 1 else np.zeros(0)
+    usual = x.ndim == 1 and n >= 4 and y.ndim >= 1 and y.shape[0] == n
+    if not (usual and np.isfinite(x).all() and np.isfinite(y).all() and (dx > 0).all()):
+        return np.asarray(CubicSpline(x, y, axis=0)(at), float)
+    # scipy.interpolate.CubicSpline.__init__, its not-a-knot case, step by step
+    dxr = dx.reshape([dx.shape[0]] + [1] * (y.ndim - 1))
+    slope = np.diff(y, axis=0) / dxr
+    a = np.zeros((3, n))
+    b = np.empty((n, *y.shape[1:]), dtype=y.dtype)
+    a[1, 1:-1] = 2 * (dx[:-1] + dx[1:])
+    a[0, 2:] = dx[:-1]
+    a[-1, :-2] = dx[1:]
+    b[1:-1] = 3 * (dxr[1:] * slope[:-1] + dxr[:-1] * slope[1:])
+    a[1, 0] = dx[1]
+    a[0, 1] = x[2] - x[0]
+    d = x[2] - x[0]
+    b[0] = ((dxr[0] + 2 * d) * dxr[1] * slope[0] + dxr[0] ** 2 * slope[1]) / d
+    a[1, -1] = dx[-2]
+    a[-1, -2] = x[-1] - x[-3]
+    d = x[-1] - x[-3]
+    b[-1] = (dxr[-1] ** 2 * slope[-2] + (2 * d + dxr[-1]) * dxr[-2] * slope[-1]) / d
+    s = solve_banded(
+        (1, 1), a, b.reshape(n, -1), overwrite_ab=True, overwrite_b=True, check_finite=False
+    ).reshape(b.shape)
+    # CubicHermiteSpline's coefficients and PPoly's evaluation, in the intervals of ``at``
+    q = np.ascontiguousarray(np.asarray(at, np.float64).ravel())
+    k = np.clip(np.searchsorted(x, q, side="right") - 1, 0, n - 2)
+    hk, sk, s0, s1 = dxr[k], slope[k], s[k], s[k + 1]
+    t = (s0 + s1 - 2 * sk) / hk
+    c0, c1 = t / hk, (sk - s0) / hk - t
+    v = (q - x[k]).reshape([q.size] + [1] * (y.ndim - 1))
+    v2 = v * v
+    out = (0.0 + y[k]) + s0 * v + c1 * v2 + c0 * (v2 * v)
+    return np.asarray(out.reshape(np.shape(at) + y.shape[1:]), float)
+
+
 def frame_overlay(
     m: FrameMeasurement,
     to_px: Callable[[FloatArray], FloatArray],
@@ -151,6 +200,247 @@ def frame_overlay(
         ok=True,
         reason="",
     )
+
+
+@dataclass(frozen=True)
+class MeasuredParts:
+    """What :func:`frame_overlay` takes from a measured frame alone, made as the frames
+    are measured (:meth:`FramePreviews.feed`): the clamp (2,), the hub axis and its normal
+    (2,) and the centre line's points along and across them from the clamp (K,), m."""
+
+    clamp: FloatArray
+    axis: FloatArray
+    normal: FloatArray
+    along: FloatArray
+    across: FloatArray
+
+
+def measured_parts(m: FrameMeasurement) -> MeasuredParts | None:
+    """:class:`MeasuredParts` of ``m`` by :func:`frame_overlay`'s operations (those of
+    :func:`beam_points_plane` and :func:`magnified_difference`); None if not ``ok``."""
+    if not m.ok:
+        return None
+    clamp = np.asarray(m.clamp_plane_m, float)
+    axis = np.array([np.cos(m.hub_angle_rad), np.sin(m.hub_angle_rad)])
+    normal = np.array([-axis[1], axis[0]])
+    rel = np.asarray(m.centreline_plane_m, float) - clamp[None, :]
+    return MeasuredParts(clamp, axis, normal, rel @ axis, rel @ normal)
+
+
+def _parts_or_none(m: FrameMeasurement) -> MeasuredParts | None:
+    """:func:`measured_parts` of ``m``, or None where it cannot make them: they are made
+    again where they are used, which says what is wrong there, not in the thread that
+    receives the measured frames."""
+    if not isinstance(m, FrameMeasurement):
+        return None
+    try:
+        return measured_parts(m)
+    except ValueError:  # arrays of the wrong shapes
+        return None
+
+
+def overlay_columns(
+    measurements: Sequence[FrameMeasurement],
+    calibration: Calibration,
+    sim_shapes: tuple[FloatArray, FloatArray, FloatArray] | None,
+    shape_rows: NDArray[np.intp],
+    scale: FloatArray,
+    parts: Sequence[MeasuredParts | None] | None = None,
+) -> OverlayColumns:
+    """:func:`frame_overlay` of every frame at once, as the columns the viewer logs: bit
+    for bit :meth:`OverlayColumns.from_overlays` of the overlays made one by one (the same
+    operations, element by element, on all the frames' points together; the points mapped
+    to pixels in one call, or in frame_overlay's calls where the lens is OpenCV's:
+    :attr:`~vision.calibration.Calibration.to_px_pointwise`).
+
+    Parameters
+    ----------
+    measurements : the F frames' measurements.
+    calibration : what maps the beam plane to the image, and the beam's length.
+    sim_shapes : the simulated shapes: stations (S,), lateral and longitudinal offsets
+        (W, S), m; or None.
+    shape_rows : (F,) which row of ``sim_shapes`` each frame shows (-1: none).
+    scale : (F,) each frame's pixel scale (see :func:`frame_overlay`).
+    parts : each frame's :func:`measured_parts`, where made ahead (None: made here).
+    """
+    n = len(measurements)
+    scale = np.asarray(scale, float).reshape(n)
+    shape_rows = np.asarray(shape_rows, np.intp).reshape(n)
+    at = np.flatnonzero([m.ok for m in measurements])  # the frames measured
+    k = at.size
+    measured = [measurements[i] for i in at.tolist()]
+    made = [parts[i] for i in at.tolist()] if parts is not None else [None] * k
+    ps = [p if p is not None else measured_parts(m) for p, m in zip(made, measured, strict=True)]
+    mp = [p for p in ps if p is not None]  # all of them: the frames are measured
+
+    def rows(values: list[Any], shape: tuple[int, ...]) -> FloatArray:
+        return np.array(values, float).reshape(k, *shape) if k else np.zeros((0, *shape))
+
+    clamp, axis = rows([p.clamp for p in mp], (2,)), rows([p.axis for p in mp], (2,))
+    normal = rows([p.normal for p in mp], (2,))
+    hub = rows([m.hub_line_px for m in measured], (2, 2)).reshape(-1, 2)
+    tip = rows([m.tip_plane_m for m in measured], (2,))
+    rigid = np.stack([clamp, clamp + calibration.beam_length_m * axis], axis=1).reshape(-1, 2)
+    centre = [np.asarray(m.centreline_px, float) for m in measured]
+    for c in centre:
+        if c.ndim != 2 or c.shape[1] != 2:
+            raise ValueError(f"overlays.centreline_px must have shape (K, 2), got {c.shape}")
+    centre_counts = np.array([c.shape[0] for c in centre], np.int64).reshape(k)
+    centre_counts[centre_counts < 2] = 0  # a line needs two points
+    kept = [c for c, m in zip(centre, centre_counts, strict=True) if m]
+
+    # the simulated beam and the magnified difference, at the frames with a shape
+    with_shape = np.flatnonzero(shape_rows[at] >= 0) if sim_shapes is not None else at[:0]
+    beam, diff, diff_counts = np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, np.int64)
+    stations_count = 0
+    if sim_shapes is not None and with_shape.size:
+        stations, lat, lon = sim_shapes
+        beam, diff, diff_counts = _sim_overlays(
+            stations,
+            np.asarray(lat)[shape_rows[at[with_shape]]],
+            np.asarray(lon)[shape_rows[at[with_shape]]],
+            clamp[with_shape],
+            axis[with_shape],
+            normal[with_shape],
+            [mp[j] for j in with_shape.tolist()],
+        )
+        stations_count = stations.shape[0] if stations.shape[0] >= 2 else 0
+        beam = beam if stations_count else np.zeros((0, 2))
+
+    # to pixels, then to the displayed image's pixels
+    sizes = [np.full(k, 2), np.ones(k, np.int64)]  # a call per frame: its rigid line, its tip
+    sizes += [np.full(with_shape.size if stations_count else 0, stations_count), diff_counts]
+    px = _to_px(calibration, [rigid, tip, beam, diff], [a[a > 0] for a in sizes])
+    rigid_px, tip_px, beam_px, diff_px = np.split(
+        px, np.cumsum([rigid.shape[0], tip.shape[0], beam.shape[0]])
+    )
+    counts = {name: np.zeros(n, np.int64) for name in OVERLAY_ENTITIES}
+    points: dict[str, FloatArray] = {}
+
+    def put(name: str, frames: NDArray[np.intp], per_frame: NDArray[np.int64], px: Any) -> None:
+        counts[name][frames] = per_frame
+        points[name] = _shown(px, np.repeat(scale[frames], per_frame))
+
+    two = np.full(k, 2, np.int64)
+    put("hub_line", at, two, hub)
+    put("rigid_line", at, two, rigid_px)
+    put("tip", at, np.ones(k, np.int64), tip_px)
+    put("centreline", at, centre_counts, np.concatenate(kept) if kept else np.zeros((0, 2)))
+    sim_frames = at[with_shape]
+    for name in ("sim_beam", "sim_stations"):
+        put(name, sim_frames, np.full(sim_frames.size, stations_count, np.int64), beam_px)
+    put("difference", sim_frames, diff_counts, diff_px)
+    return OverlayColumns(
+        counts=counts,
+        points=points,
+        given=np.ones(n, bool),
+        failed=np.array([not m.ok for m in measurements], bool).reshape(n),
+        reasons=[m.reason if not m.ok else "" for m in measurements],
+    )
+
+
+def _shown(px: FloatArray, scale: FloatArray) -> FloatArray:
+    """:func:`frame_overlay`'s pixels ``px`` (P, 2) on the displayed image, each point's
+    frame at ``scale`` (P,): one scale for all is the same arithmetic, done faster."""
+    px = np.asarray(px, float).reshape(-1, 2)
+    s: Any = scale[0] if scale.size and (scale == scale[0]).all() else scale[:, None]
+    return np.asarray((px + 0.5) * s - 0.5, float)
+
+
+def _sim_overlays(
+    stations: FloatArray,
+    lat: FloatArray,
+    lon: FloatArray,
+    clamp: FloatArray,
+    axis: FloatArray,
+    normal: FloatArray,
+    parts: list[MeasuredParts],
+) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+    """The W frames' simulated beams (W * S, 2) (:func:`beam_points_plane`) and magnified
+    differences (:func:`magnified_difference`), plane points, with how many points each
+    frame's difference has (0: fewer than two, none drawn), at once."""
+    w = lat.shape[0]
+    x = stations + lon  # (W, S): where the stations are along the hub axis
+    beam = (
+        clamp[:, None, :] + x[:, :, None] * axis[:, None, :] + lat[:, :, None] * normal[:, None, :]
+    )
+    sizes = np.array([p.along.size for p in parts], np.int64)
+    along = np.concatenate([p.along for p in parts]) if w else np.zeros(0)
+    across = np.concatenate([p.across for p in parts]) if w else np.zeros(0)
+    # the centre line's points within the simulated beam's span
+    inside = (along >= np.repeat(x[:, 0], sizes)) & (along <= np.repeat(x[:, -1], sizes))
+    frame = np.repeat(np.arange(w), sizes)
+    counts = np.bincount(frame[inside], minlength=w).astype(np.int64)
+    counts[counts < 2] = 0  # fewer: frame_overlay draws no difference
+    keep = inside & np.repeat(counts > 0, sizes)
+    along, across = along[keep], across[keep]
+    sim_across = _not_a_knot_cubics(x, lat, along, counts)
+    shown = sim_across + DIFFERENCE_GAIN * (across - sim_across)
+    diff = (
+        np.repeat(clamp, counts, axis=0)
+        + along[:, None] * np.repeat(axis, counts, axis=0)
+        + shown[:, None] * np.repeat(normal, counts, axis=0)
+    )
+    return beam.reshape(-1, 2), diff, counts
+
+
+def _to_px(
+    calibration: Calibration, groups: list[FloatArray], calls: list[NDArray[np.int64]]
+) -> FloatArray:
+    """The plane points of ``groups`` (each (P, 2)) in raw pixels: in one call where that
+    is what calls of ``calls`` points each give, else in those calls."""
+    points = np.concatenate([np.asarray(g, float).reshape(-1, 2) for g in groups])
+    if calibration.to_px_pointwise:
+        return np.asarray(calibration.to_px(points), float).reshape(-1, 2)
+    bounds = np.cumsum(np.concatenate(calls))[:-1]
+    mapped = [calibration.to_px(p) for p in np.split(points, bounds) if p.shape[0]]
+    return np.concatenate(mapped).reshape(-1, 2) if mapped else np.zeros((0, 2))
+
+
+def _not_a_knot_cubics(
+    x: FloatArray, y: FloatArray, at: FloatArray, counts: NDArray[np.int64]
+) -> FloatArray:
+    """:func:`not_a_knot_cubic` of each row of ``x``, ``y`` (W, n) at its ``counts``
+    points of ``at``, one row after the other, bit for bit: its element-wise steps on all
+    rows at once, its scalars' powers as scalars, the same LAPACK solve of each row."""
+    w, n = x.shape
+    ends = np.cumsum(counts).tolist()
+    starts = [0, *ends[:-1]]
+    if n < 4:  # scipy's own cases
+        got = [not_a_knot_cubic(x[r], y[r], at[starts[r] : ends[r]]) for r in range(w)]
+        return np.concatenate(got) if got else np.zeros(0)
+    h = np.diff(x, axis=1)
+    d = np.diff(y, axis=1) / h
+    a = np.zeros((w, n, n))
+    b = np.empty((w, n))
+    i = np.arange(1, n - 1)
+    a[:, i, i - 1] = h[:, 1:]
+    a[:, i, i] = 2.0 * (h[:, :-1] + h[:, 1:])
+    a[:, i, i + 1] = h[:, :-1]
+    b[:, 1:-1] = 3.0 * (h[:, 1:] * d[:, :-1] + h[:, :-1] * d[:, 1:])
+    h0, h1, hl, hm = h[:, 0], h[:, 1], h[:, -1], h[:, -2]
+    # numpy's power of a scalar (the C library's pow), as the one-row function takes it
+    h0sq = np.array([v**2 for v in h0], float)
+    hlsq = np.array([v**2 for v in hl], float)
+    a[:, 0, 0], a[:, 0, 1] = h1, h0 + h1
+    b[:, 0] = ((h0 + 2.0 * (h0 + h1)) * h1 * d[:, 0] + h0sq * d[:, 1]) / (h0 + h1)
+    a[:, -1, -1], a[:, -1, -2] = hm, hl + hm
+    b[:, -1] = (hlsq * d[:, -2] + (2.0 * (hm + hl) + hl) * hm * d[:, -1]) / (hm + hl)
+    m = np.linalg.solve(a, b[:, :, None])[:, :, 0]
+    # each interval's cubic, in the one-row function's operations
+    c2 = (3.0 * d - 2.0 * m[:, :-1] - m[:, 1:]) / h
+    c3 = (m[:, :-1] + m[:, 1:] - 2.0 * d) / h**2
+    q = np.asarray(at, float)
+    k = [
+        np.searchsorted(x[r], q[s:e], side="right")
+        for r, (s, e) in enumerate(zip(starts, ends, strict=True))
+    ]
+    cell = np.repeat(np.arange(w) * (n - 1), counts) + np.clip(
+        (np.concatenate(k) if k else np.zeros(0, np.intp)) - 1, 0, n - 2
+    )
+    t = q - x[:, :-1].ravel()[cell]
+    ck = [v.ravel()[cell] for v in (y[:, :-1], m[:, :-1], c2, c3)]
+    return np.asarray(ck[0] + t * (ck[1] + t * (ck[2] + t * ck[3])), float)
 
 
 def displayed_frame(data: bytes, encoding: str, reduction: int) -> tuple[bytes, str, float]:
@@ -206,6 +496,8 @@ class FramePreviews:
             else None
         )
         self._made: dict[int, tuple[bytes, str, float]] = {}
+        # each frame fed: its measurement and that measurement's overlay parts
+        self._parts: dict[int, tuple[FrameMeasurement, MeasuredParts | None]] = {}
         self.wall_s = 0.0  # how long the thread took
         self.cpu_s = 0.0  # and the CPU time it used (its helper threads' too)
         self._helpers_cpu_s: list[float] = []
@@ -224,7 +516,13 @@ class FramePreviews:
 
     def feed(self, frames: Iterable[MeasuredFrame]) -> None:
         """Measured frames, in the log's order, in any number at a time
-        (``process_run``'s ``on_measured``); a frame given again is ignored."""
+        (``process_run``'s ``on_measured``); a frame given again is ignored. Their
+        overlays' :func:`measured_parts` are made here (a few microseconds a frame, in
+        the thread that receives them, which waits for the workers between batches)."""
+        frames = list(frames)
+        for f in frames:
+            if f.sequence not in self._parts:
+                self._parts[f.sequence] = (f.measurement, _parts_or_none(f.measurement))
         if self.mode == "whole":
             return
         with self._cond:
@@ -344,6 +642,15 @@ class FramePreviews:
         self._stop.set()
         self._finish()
 
+    def overlay_parts(self, frames: Sequence[MeasuredFrame]) -> list[MeasuredParts | None]:
+        """The :func:`measured_parts` of each of ``frames`` made as it was fed (None where
+        none was, or it was fed with another measurement: made where they are used)."""
+        out: list[MeasuredParts | None] = []
+        for f in frames:
+            fed = self._parts.get(f.sequence)
+            out.append(fed[1] if fed is not None and fed[0] is f.measurement else None)
+        return out
+
     def take(self, frames: Iterable[MeasuredFrame] = ()) -> dict[int, tuple[bytes, str, float]]:
         """Wait for the thread (if started), given the run's measured ``frames`` (those
         not fed already); the previews it made, by frame sequence."""
@@ -368,26 +675,67 @@ def stream_processed(
     :class:`~pipelines.review.previews.RegionPreviews` (``frame_previews`` "region": whole
     once a second, the measured region alone between; "whole": every frame whole), taken
     from ``previews`` where it made them that way (:class:`FramePreviews`), and sent to
-    Rerun as columns, 16 frames per call.
+    Rerun as columns, 16 frames per call. Their overlays follow, all the frames' at once
+    (:func:`overlay_columns`, from the parts of them ``previews`` made as the frames were
+    measured), one call per overlay entity.
     """
     if frame_previews not in PREVIEW_MODES:
         raise ValueError(f"frame_previews must be one of {PREVIEW_MODES}, got {frame_previews!r}")
     ds = processed.results
-    region = frame_reduction > 1 and frame_previews == "region"
-    viewer.log_results(ds, summary_note=region_note(frame_reduction) if region else "")
-    sim = processed.sim
-    lat = CubicSpline(sim.time_s, sim.station_lateral_m, axis=0)
-    lon = CubicSpline(sim.time_s, sim.station_longitudinal_m, axis=0)
-    t0_ns = int(ds.attrs.get("t_zero_ns", 0))
+    frames = processed.frames
+    logged, scales, first = _log_results_and_frames(
+        processed, log_path, viewer, frame_reduction, previews, frame_previews
+    )
+    # then the overlays of all the frames logged, at once (frame_overlay's, bit for bit)
+    rows = np.asarray(logged, np.intp)
+    shapes, shape_row = _sim_shapes(processed)
+    parts = previews.overlay_parts(frames) if previews is not None else None
+    overlays = overlay_columns(
+        [frames[i].measurement for i in logged],
+        processed.calibration,
+        shapes,
+        shape_row[rows],
+        np.asarray(scales, float),
+        [parts[i] for i in logged] if parts is not None else None,
+    )
     frame_t = ds["frame_time"].values
-    # the simulated shape at every frame's time within the simulation's, at once
+    viewer.log_frame_overlays(frame_t[rows], overlays, first_index=first)
+    viewer.log_events(processed.events, t0_ns=int(ds.attrs.get("t_zero_ns", 0)))
+
+
+def _sim_shapes(
+    processed: Processed,
+) -> tuple[tuple[FloatArray, FloatArray, FloatArray] | None, NDArray[np.intp]]:
+    """The simulated shapes at the frames' times within the simulation's (stations (S,),
+    lateral and longitudinal (W, S) at those W frames), and each frame's row of them (-1:
+    none)."""
+    sim = processed.sim
+    frame_t = processed.results["frame_time"].values
     within = np.isfinite(frame_t) & (sim.time_s[0] <= frame_t) & (frame_t <= sim.time_s[-1])
     shapes = None
     if within.any():
-        shapes = np.asarray(lat(frame_t[within])), np.asarray(lon(frame_t[within]))
-    shape_row = np.cumsum(within) - 1
+        at = frame_t[within]
+        lat = spline_at(sim.time_s, sim.station_lateral_m, at)
+        shapes = sim.stations_m, lat, spline_at(sim.time_s, sim.station_longitudinal_m, at)
+    return shapes, np.where(within, np.cumsum(within) - 1, -1)
+
+
+def _log_results_and_frames(
+    processed: Processed,
+    log_path: Path,
+    viewer: RunViewer,
+    frame_reduction: int,
+    previews: FramePreviews | None,
+    frame_previews: str,
+) -> tuple[list[int], list[float], int]:
+    """:func:`stream_processed`'s results and frames, without their overlays: which of
+    ``processed.frames`` were logged, in order, at which pixel scales, from which value
+    on the ``frame`` timeline."""
+    ds = processed.results
+    region = frame_reduction > 1 and frame_previews == "region"
+    viewer.log_results(ds, summary_note=region_note(frame_reduction) if region else "")
+    frame_t = ds["frame_time"].values
     by_seq = {f.sequence: (i, f) for i, f in enumerate(processed.frames)}
-    length = processed.calibration.beam_length_m
     made: dict[int, tuple[bytes, str, float]] = {}
     composer = None
     if (
@@ -401,15 +749,17 @@ def stream_processed(
         previews.stop()
     if composer is None and frame_reduction > 1:
         composer = RegionPreviews(frame_reduction, whole=frame_previews == "whole")
+    first = viewer.frame_index
+    logged: list[int] = []  # each frame logged: its place in processed.frames
+    scales: list[float] = []  # and its pixel scale
     times: list[float] = []
     images: list[bytes] = []
     encodings: list[str] = []
-    overlays: list[FrameOverlay | None] = []
 
     def send() -> None:
         if times:
-            viewer.log_frames(times, images, encodings, overlays)
-            for column in (times, images, encodings, overlays):
+            viewer.log_frames(times, images, encodings)
+            for column in (times, images, encodings):
                 column.clear()
 
     for sequence, frame in _measured_in_log_order(log_path, processed.frames, made):
@@ -417,11 +767,6 @@ def stream_processed(
         if hit is None:
             continue
         i, measured = hit
-        t = float(frame_t[i])
-        shape = None
-        if within[i] and shapes is not None:
-            k = shape_row[i]
-            shape = (sim.stations_m, shapes[0][k], shapes[1][k])
         shown = made.pop(sequence, None)
         if shown is None:
             assert frame is not None  # read from the log wherever no preview was made
@@ -430,17 +775,15 @@ def stream_processed(
             else:
                 shown = composer.show(frame.data, frame.encoding, measured.measurement)
         data, encoding, scale = shown
-        overlay = frame_overlay(
-            measured.measurement, processed.calibration.to_px, shape, length, scale=scale
-        )
-        times.append(t)
+        times.append(float(frame_t[i]))
         images.append(data)
         encodings.append(encoding)
-        overlays.append(overlay)
+        logged.append(i)
+        scales.append(scale)
         if len(times) >= _FRAMES_PER_BATCH:
             send()
     send()
-    viewer.log_events(processed.events, t0_ns=t0_ns)
+    return logged, scales, first
 
 
 def _measured_in_log_order(

@@ -184,7 +184,77 @@ def _overlay_shapes(o: FrameOverlay) -> dict[str, FloatArray | None]:
     return out
 
 
-def _offsets(lengths: list[int]) -> pa.Array:
+#: the overlay entities, under ``/camera/image``
+OVERLAY_ENTITIES = tuple(_OVERLAY_STYLE)
+# the fewest points an overlay entity draws (fewer: it is cleared at that frame)
+_OVERLAY_MIN_POINTS = {name: 1 if name == "tip" else 2 for name in OVERLAY_ENTITIES}
+
+
+@dataclass(frozen=True)
+class OverlayColumns:
+    """Many frames' overlays at once: what :meth:`RunViewer.log_frames` makes of a list
+    of :class:`FrameOverlay` (:meth:`from_overlays`), or built as columns directly
+    (``pipelines.review.overlays.overlay_columns``), for F frames.
+
+    Attributes
+    ----------
+    counts : for each overlay entity (``hub_line``, ``rigid_line``, ``sim_beam``,
+        ``difference``, ``centreline``, ``sim_stations``, ``tip``), (F,) how many points
+        it draws at each frame; 0: it is cleared there.
+    points : for each entity, (sum of counts, 2) those points in pixels, frame after frame.
+    given : (F,) whether the frame has an overlay at all (one without is logged bare:
+        nothing drawn, nothing cleared).
+    failed : (F,) whether the frame gave no measurement; reasons : (F,) why not.
+    """
+
+    counts: dict[str, NDArray[np.int64]]
+    points: dict[str, FloatArray]
+    given: NDArray[np.bool_]
+    failed: NDArray[np.bool_]
+    reasons: list[str]
+
+    def __post_init__(self) -> None:
+        n = self.given.shape[0]
+        if self.failed.shape != (n,) or len(self.reasons) != n:
+            raise ValueError(f"given, failed and reasons must be as long: {n}")
+        for name, least in _OVERLAY_MIN_POINTS.items():
+            counts, points = self.counts[name], self.points[name]
+            if counts.shape != (n,) or points.ndim != 2 or points.shape[1] != 2:
+                raise ValueError(
+                    f"overlays.{name}: counts ({n},) and points (P, 2), "
+                    f"got {counts.shape} and {points.shape}"
+                )
+            if int(counts.sum()) != points.shape[0] or np.any((counts > 0) & (counts < least)):
+                raise ValueError(f"overlays.{name}: counts do not match its points")
+
+    @classmethod
+    def from_overlays(cls, overlays: Sequence[FrameOverlay | None]) -> OverlayColumns:
+        """The columns of ``overlays`` (None: a frame without one), as
+        :meth:`RunViewer.log_frame` would log each."""
+        n = len(overlays)
+        counts = {name: np.zeros(n, np.int64) for name in OVERLAY_ENTITIES}
+        values: dict[str, list[FloatArray]] = {name: [] for name in OVERLAY_ENTITIES}
+        for i, o in enumerate(overlays):
+            if o is None:
+                continue
+            for name, pts in _overlay_shapes(o).items():
+                if pts is not None:
+                    counts[name][i] = pts.shape[0]
+                    values[name].append(pts)
+        return cls(
+            counts=counts,
+            points={k: np.concatenate(v) if v else np.zeros((0, 2)) for k, v in values.items()},
+            given=np.array([o is not None for o in overlays], bool),
+            failed=np.array([o is not None and not o.ok for o in overlays], bool),
+            reasons=[o.reason if o is not None else "" for o in overlays],
+        )
+
+
+def _overlay_rows(overlays: Sequence[FrameOverlay | None] | OverlayColumns) -> int:
+    return overlays.given.shape[0] if isinstance(overlays, OverlayColumns) else len(overlays)
+
+
+def _offsets(lengths: Sequence[int] | NDArray[np.int64]) -> pa.Array:
     out = np.zeros(len(lengths) + 1, np.int32)
     out[1:] = np.cumsum(lengths)
     return pa.array(out)
@@ -200,17 +270,16 @@ def _blob_array(data: Sequence[bytes | bytearray | memoryview]) -> pa.Array:
     )
 
 
-def _strips_array(strips: list[FloatArray]) -> pa.Array:
-    """Rerun's LineStrip2D column (one strip per row) of ``strips`` (K_i, 2), in one piece
-    (Rerun converts them strip by strip)."""
-    flat = np.concatenate(strips).astype(np.float32).ravel()
-    points = pa.FixedSizeListArray.from_arrays(
+def _strips_array(points: FloatArray, lengths: NDArray[np.int64]) -> pa.Array:
+    """Rerun's LineStrip2D column (one strip per row) of the strips of ``lengths`` points
+    one after the other in ``points`` (P, 2), in one piece (Rerun converts them strip by
+    strip)."""
+    flat = np.ascontiguousarray(points, np.float32).ravel()
+    values = pa.FixedSizeListArray.from_arrays(
         pa.array(flat), type=pa.list_(pa.field("item", pa.float32(), False), 2)
     )
-    point = pa.field("item", points.type, False)
-    return pa.ListArray.from_arrays(
-        _offsets([len(x) for x in strips]), points, type=pa.list_(point)
-    )
+    point = pa.field("item", values.type, False)
+    return pa.ListArray.from_arrays(_offsets(lengths), values, type=pa.list_(point))
 
 
 def _series(name: str, value: ArrayLike, n: int | None = None) -> FloatArray:
@@ -423,12 +492,17 @@ class RunViewer:
         finally:
             rec.reset_time()
 
+    @property
+    def frame_index(self) -> int:
+        """The next frame's value on the ``frame`` timeline."""
+        return self._frame_index
+
     def log_frames(
         self,
         t_s: ArrayLike,
         data: Sequence[bytes],
         encodings: Sequence[str],
-        overlays: Sequence[FrameOverlay | None] | None = None,
+        overlays: Sequence[FrameOverlay | None] | OverlayColumns | None = None,
         *,
         first_index: int | None = None,
     ) -> None:
@@ -437,10 +511,11 @@ class RunViewer:
         ten per frame, which was most of a processed run's ``.rrd`` step (issue #19)."""
         t = _series("t_s", t_s)
         n = t.size
-        if len(data) != n or len(encodings) != n or (overlays is not None and len(overlays) != n):
+        n_over = n if overlays is None else _overlay_rows(overlays)
+        if len(data) != n or len(encodings) != n or n_over != n:
             raise ValueError(
                 f"t_s, data, encodings and overlays must be as long: {n}, {len(data)}, "
-                f"{len(encodings)}, {len(overlays) if overlays is not None else n}"
+                f"{len(encodings)}, {n_over}"
             )
         if not np.isfinite(t).all():
             raise ValueError("t_s must be finite")
@@ -456,64 +531,91 @@ class RunViewer:
         self._frame_index = first + n
         if n == 0:
             return
-        t_ns = np.round(t * 1e9).astype(np.int64)
-        seq = np.arange(first, first + n, dtype=np.int64)
-
-        def send(entity: str, rows: list[int], columns: Any) -> None:
-            if not rows:
-                return
-            self.recording.send_columns(
-                entity,
-                indexes=[
-                    rr.TimeColumn("time", duration=t_ns[rows].astype("timedelta64[ns]")),
-                    rr.TimeColumn("frame", sequence=seq[rows]),
-                ],
-                columns=columns,
-                strict=True,
-            )
-
-        send(
+        self._send_rows(
             "/camera/image",
-            list(range(n)),
+            t,
+            first,
+            np.arange(n),
             rr.EncodedImage.columns(blob=_blob_array(data), media_type=media),
         )
-        if overlays is None:
+        if overlays is not None:
+            columns = (
+                overlays
+                if isinstance(overlays, OverlayColumns)
+                else OverlayColumns.from_overlays(overlays)
+            )
+            self._send_overlays(t, first, columns)
+
+    def log_frame_overlays(
+        self, t_s: ArrayLike, overlays: OverlayColumns, *, first_index: int
+    ) -> None:
+        """The overlays of frames logged by :meth:`log_frames` without them (the frames
+        from ``first_index`` on, at ``t_s``), as :meth:`log_frames` would have logged them
+        with the frames: the same rows, in as many calls as there are entities."""
+        t = _series("t_s", t_s)
+        if _overlay_rows(overlays) != t.size:
+            raise ValueError(
+                f"t_s and overlays must be as long: {t.size}, {_overlay_rows(overlays)}"
+            )
+        if not np.isfinite(t).all():
+            raise ValueError("t_s must be finite")
+        if t.size:
+            self._send_overlays(t, int(first_index), overlays)
+
+    def _send_rows(
+        self, entity: str, t: FloatArray, first: int, rows: NDArray[np.intp], columns: Any
+    ) -> None:
+        """``columns`` at the frames ``rows`` of those at times ``t`` from ``first`` on."""
+        if rows.size == 0:
             return
-        drawn: dict[str, tuple[list[int], list[FloatArray]]] = {}
-        cleared: dict[str, list[int]] = {}
-        failed: list[tuple[int, str]] = []
-        for i, o in enumerate(overlays):
-            if o is None:
-                continue
-            for name, pts in _overlay_shapes(o).items():
-                if pts is None:
-                    cleared.setdefault(name, []).append(i)
+        t_ns = np.round(t[rows] * 1e9).astype(np.int64)
+        self.recording.send_columns(
+            entity,
+            indexes=[
+                rr.TimeColumn("time", duration=t_ns.astype("timedelta64[ns]")),
+                rr.TimeColumn("frame", sequence=first + rows.astype(np.int64)),
+            ],
+            columns=columns,
+            strict=True,
+        )
+
+    def _send_overlays(self, t: FloatArray, first: int, o: OverlayColumns) -> None:
+        """The overlays ``o`` of the frames at times ``t`` from ``first`` on: each entity
+        drawn where it has points and cleared where it has none, each in one call."""
+        for name, (colour, radius, order) in _OVERLAY_STYLE.items():
+            counts = o.counts[name]
+            drawn = np.flatnonzero(counts > 0)
+            k = drawn.size
+            if k:
+                style = {"colors": [colour] * k, "radii": [radius] * k, "draw_order": [order] * k}
+                columns: list[Any]
+                if name in _OVERLAY_LINES:
+                    strips = _strips_array(o.points[name], counts[drawn])
+                    columns = list(rr.LineStrips2D.columns(strips=strips, **style))
                 else:
-                    rows, values = drawn.setdefault(name, ([], []))
-                    rows.append(i)
-                    values.append(pts)
-            if not o.ok:
-                failed.append((i, f"frame at {t[i]:.3f} s: {o.reason or 'no measurement'}"))
-        for name, (rows, values) in drawn.items():
-            colour, radius, order = _OVERLAY_STYLE[name]
-            k = len(rows)
-            style = {"colors": [colour] * k, "radii": [radius] * k, "draw_order": [order] * k}
-            columns: list[Any]
-            if name in _OVERLAY_LINES:
-                columns = list(rr.LineStrips2D.columns(strips=_strips_array(values), **style))
-            else:
-                lengths = [len(v) for v in values]
-                columns = [
-                    *rr.Points2D.columns(positions=np.concatenate(values)).partition(lengths),
-                    *rr.Points2D.columns(**style),
-                ]
-            send(f"/camera/image/{name}", rows, columns)
-        for name, rows in cleared.items():
-            send(f"/camera/image/{name}", rows, rr.Clear.columns(is_recursive=[False] * len(rows)))
-        send(
+                    columns = [
+                        *rr.Points2D.columns(positions=o.points[name]).partition(counts[drawn]),
+                        *rr.Points2D.columns(**style),
+                    ]
+                self._send_rows(f"/camera/image/{name}", t, first, drawn, columns)
+            cleared = np.flatnonzero(o.given & (counts == 0))
+            self._send_rows(
+                f"/camera/image/{name}",
+                t,
+                first,
+                cleared,
+                rr.Clear.columns(is_recursive=[False] * cleared.size),
+            )
+        failed = np.flatnonzero(o.given & o.failed)
+        texts = [
+            f"frame at {t[i]:.3f} s: {o.reasons[i] or 'no measurement'}" for i in failed.tolist()
+        ]
+        self._send_rows(
             "/events/frames",
-            [i for i, _ in failed],
-            rr.TextLog.columns(text=[m for _, m in failed], level=["WARN"] * len(failed)),
+            t,
+            first,
+            failed,
+            rr.TextLog.columns(text=texts, level=["WARN"] * len(texts)),
         )
 
     def _log_overlays(self, o: FrameOverlay, t_s: float) -> None:
@@ -869,8 +971,10 @@ def open_viewer(
 
 
 __all__ = [
+    "OVERLAY_ENTITIES",
     "EventLike",
     "FrameOverlay",
+    "OverlayColumns",
     "RrdEntity",
     "RunViewer",
     "build_blueprint",

@@ -120,6 +120,44 @@ def test_whole_previews_are_every_frame_reduced_whole(tmp_path: Path) -> None:
     assert "last whole frame" in repr(_data_rows(inline)[("/summary", "TextDocument:text")])
 
 
+@pytest.mark.slow
+def test_the_recording_shows_the_overlays_made_frame_by_frame(tmp_path: Path) -> None:
+    """The overlays, made at once after the frames from the parts made while they were
+    measured, are those of frame_overlay frame by frame at scipy's simulated shape."""
+    from scipy.interpolate import CubicSpline
+
+    from pipelines.review.overlays import frame_overlay
+
+    log_path = tmp_path / "run.mcap"
+    capture_synthetic(load_rig(), log_path, 1.0)
+    previews = FramePreviews(log_path, 2, "whole").start()
+    processed = process_run(log_path, model="modal", workers=1, on_measured=previews.feed)
+    assert all(p is not None for p in previews.overlay_parts(processed.frames))
+    streamed = tmp_path / "streamed.rrd"
+    with open_viewer("beambench-test", rrd_path=streamed) as viewer:
+        stream_processed(processed, log_path, viewer, previews=previews)
+    ds, sim, cal = processed.results, processed.sim, processed.calibration
+    lat = CubicSpline(sim.time_s, sim.station_lateral_m, axis=0)
+    lon = CubicSpline(sim.time_s, sim.station_longitudinal_m, axis=0)
+    logged = {f.sequence: f for f in iter_frames(log_path)}
+    times, images, overlays = [], [], []
+    for f, t in zip(processed.frames, ds["frame_time"].values, strict=True):
+        shape = (sim.stations_m, lat(t), lon(t)) if sim.time_s[0] <= t <= sim.time_s[-1] else None
+        m = f.measurement
+        overlays.append(frame_overlay(m, cal.to_px, shape, cal.beam_length_m, scale=0.5))
+        times.append(float(t))
+        images.append(preview(logged[f.sequence].data, 2))
+    assert sum(o.sim_beam_px is not None for o in overlays) > len(overlays) // 2
+    reference = tmp_path / "reference.rrd"
+    with open_viewer("beambench-test", rrd_path=reference) as viewer:
+        viewer.log_results(ds)
+        viewer.log_frames(times, images, ["jpeg"] * len(times), overlays)
+        viewer.log_events(processed.events, t0_ns=int(ds.attrs["t_zero_ns"]))
+    rows = _data_rows(streamed)
+    assert len(rows[("/camera/image/difference", "LineStrips2D:strips")]) > 0
+    assert rows == _data_rows(reference)
+
+
 class _Logged:
     def __init__(self, sequence: int) -> None:
         self.sequence = sequence

@@ -15,7 +15,7 @@ from rerun.chunk import RrdReader
 from pipelines.results.compare import summarise_errors
 from pipelines.results.dataset import make_results
 from pipelines.review.rrd import blueprint_views
-from pipelines.review.viewer import FrameOverlay, open_viewer, rrd_entities
+from pipelines.review.viewer import FrameOverlay, OverlayColumns, open_viewer, rrd_entities
 from pipelines.rig import Rig
 
 FS_HZ = 400.0
@@ -375,3 +375,13 @@ def test_frames_sent_as_columns_are_the_frames_logged_one_by_one(tmp_path: Path)
     assert ("/camera/image/sim_stations", "Points2D:positions") in expected
     assert ("/events/frames", "TextLog:text") in expected
     assert _all_rows(columns) == expected
+    # the frames first, a few at a time, and then all their overlays, as columns
+    split = tmp_path / "split.rrd"
+    with open_viewer("beambench-test", rrd_path=split) as viewer:
+        first = viewer.frame_index
+        for k in range(0, len(frames), 3):
+            part = frames[k : k + 3]
+            viewer.log_frames([f[0] for f in part], [f[1] for f in part], [f[2] for f in part])
+        overlays = OverlayColumns.from_overlays([f[3] for f in frames])
+        viewer.log_frame_overlays([f[0] for f in frames], overlays, first_index=first)
+    assert _all_rows(split) == expected
