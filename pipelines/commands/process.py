@@ -61,7 +61,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="reduced frames in the recording: 'whole' (default) every frame as the camera "
         "took it; 'region' each frame whole once a second and every frame not measured, "
         "and between them only the measured beam and hub as that frame's pixels over the "
-        "last whole frame (where its beam has left, a later frame's; about half the "
+        "last whole frame (where its beam has left, a later frame's; about a third of the "
         "previews' CPU)",
     )
 
