@@ -59,6 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from daq.drivers.opencv_camera import JPEG_RST_INTERVAL_MCU
+from pipelines.bench.malloc import keep_freed_memory
 from vision import (
     Calibration,
     FrameMeasurement,
@@ -579,11 +580,18 @@ def run(quick: bool, sets: tuple[str, ...] = SETS) -> int:
 
     # Both methods on one core (OpenCV would otherwise spread the paper's filters).
     cv2.setNumThreads(1)
+    kept = keep_freed_memory()
     n = 6 if quick else 24
     repeats = 1 if quick else 7
     print(
         f"beambench bench vision: seeded rendered 2048x1536 frames ({n} per set); "
-        f"frames/s from the fastest of {repeats} pass(es), the methods taking turns"
+        f"frames/s from the fastest of {repeats} pass(es), the methods taking turns; "
+        + (
+            "freed memory kept in the process for both (pipelines.bench.malloc)"
+            if kept
+            else "freed memory given back as the C library does (the paper chain's "
+            "speed then depends on the allocations before it: pipelines.bench.malloc)"
+        )
     )
     print(
         f"{'set':17s} {'method':8s} {'frames/s':>9s} {'flagged':>8s} "
