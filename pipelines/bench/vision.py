@@ -43,6 +43,9 @@ frames. Its last row, "nominal colour", is the nominal set as a colour camera's 
 writes it (:mod:`daq.drivers.opencv_camera`: the frame in BGR with a warm cast, OpenCV's
 4:2:0 JPEG at the capture's quality and restart interval), measured from its gray (Y)
 decode as a real colour bench's frames are.
+Both methods are timed with freed memory kept in the process
+(:func:`pipelines.bench.malloc.keep_freed_memory`): the paper chain's temporaries otherwise
+come back as fresh pages, and its speed depends on what ran before it.
 Per-frame errors use the calibration from the true registration corners (the per-frame
 chain alone); the last lines give the automatic registration detection's corner error,
 what measuring with the detected registration instead of the true one changes, and the
