@@ -9,9 +9,9 @@ microseconds. The paper's chain allocates tens of megabytes of temporaries a fra
 28-30 ms a nominal frame, and 20-21 ms with the memory kept; that process took ~850 000
 minor faults for 360 frames through the chain (~9 MB of fresh pages a frame). How often
 the memory was given back depended on the allocations before (the "slow spells" of
-`bench vision`'s paper chain in the tenth and eleventh passes). The default method reuses its buffers and runs the same either way. Both are
-timed with the memory kept: the comparison is then of the methods, not of the
-allocator's history.
+`bench vision`'s paper chain in the tenth and eleventh passes). The default method
+reuses its buffers and runs the same either way. Both are timed with the memory kept:
+the comparison is then of the methods, not of the allocator's history.
 """
 
 from __future__ import annotations
