@@ -6,6 +6,7 @@ Computes the pixels (from the measurement and the simulation), then hands them t
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections import deque
@@ -25,11 +26,18 @@ from daq.log import LogError, iter_frames
 from pipelines.process.frames import MeasuredFrame
 from pipelines.process.run import Processed
 from pipelines.review.display import DIFFERENCE_GAIN
-from pipelines.review.previews import PREVIEW_MODES, RegionPreviews, region_note, whole_preview
+from pipelines.review.previews import (
+    PREVIEW_MODES,
+    RegionPreviews,
+    Shown,
+    region_note,
+    whole_preview,
+)
 from pipelines.review.viewer import OVERLAY_ENTITIES, FrameOverlay, OverlayColumns, RunViewer
 from vision import FrameMeasurement, VisionError
 from vision.calibration import Calibration
-from vision.codec import preview
+
+log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 
@@ -443,12 +451,13 @@ def _not_a_knot_cubics(
     return np.asarray(ck[0] + t * (ck[1] + t * (ck[2] + t * ck[3])), float)
 
 
-def displayed_frame(data: bytes, encoding: str, reduction: int) -> tuple[bytes, str, float]:
+def displayed_frame(data: bytes, encoding: str, reduction: int) -> Shown:
     """The frame as the recording shows it: as logged (``reduction`` 1) or a JPEG preview
-    at 1/``reduction`` of its size (:func:`vision.codec.preview`); with the pixel scale."""
+    at 1/``reduction`` of its size (:func:`whole_preview`: None for a frame that does not
+    decode); with the pixel scale."""
     if reduction == 1:
         return data, encoding, 1.0
-    return preview(data, reduction), "jpeg", 1.0 / reduction
+    return whole_preview(data, reduction)
 
 
 # Previews made ahead are kept in memory up to this many bytes (a bench minute at 1/2 size
@@ -495,7 +504,7 @@ class FramePreviews:
             if self.reduction in (2, 4)
             else None
         )
-        self._made: dict[int, tuple[bytes, str, float]] = {}
+        self._made: dict[int, Shown] = {}
         # each frame fed: its measurement and that measurement's overlay parts
         self._parts: dict[int, tuple[FrameMeasurement, MeasuredParts | None]] = {}
         self.wall_s = 0.0  # how long the thread took
@@ -582,7 +591,7 @@ class FramePreviews:
                     data, encoding = frame.data, frame.encoding
                 shown = self.composer.show(data, encoding, m)
                 self._made[sequence] = shown
-                size += len(shown[0])
+                size += len(shown[0] or b"")
         except (VisionError, LogError, OSError, ValueError):
             return  # the frames left are reduced in stream_processed, which reports it
 
@@ -591,9 +600,9 @@ class FramePreviews:
         :data:`_WHOLE_THREADS` at a time, kept in the log's order (the same as one by
         one: up to the budget, up to the first that fails)."""
         size = 0
-        pending: deque[tuple[int, Future[tuple[bytes, str, float]]]] = deque()
+        pending: deque[tuple[int, Future[Shown]]] = deque()
 
-        def made(data: bytes) -> tuple[bytes, str, float]:
+        def made(data: bytes) -> Shown:
             c0 = time.thread_time()
             try:
                 return whole_preview(data, composer.reduction)
@@ -608,7 +617,7 @@ class FramePreviews:
             shown = done.result()
             self._made[sequence] = shown
             composer.whole_frames += 1
-            size += len(shown[0])
+            size += len(shown[0] or b"")
             return True
 
         pool = ThreadPoolExecutor(_WHOLE_THREADS, thread_name_prefix="frame-previews")
@@ -651,7 +660,7 @@ class FramePreviews:
             out.append(fed[1] if fed is not None and fed[0] is f.measurement else None)
         return out
 
-    def take(self, frames: Iterable[MeasuredFrame] = ()) -> dict[int, tuple[bytes, str, float]]:
+    def take(self, frames: Iterable[MeasuredFrame] = ()) -> dict[int, Shown]:
         """Wait for the thread (if started), given the run's measured ``frames`` (those
         not fed already); the previews it made, by frame sequence."""
         self.feed(frames)
@@ -736,7 +745,7 @@ def _log_results_and_frames(
     viewer.log_results(ds, summary_note=region_note(frame_reduction) if region else "")
     frame_t = ds["frame_time"].values
     by_seq = {f.sequence: (i, f) for i, f in enumerate(processed.frames)}
-    made: dict[int, tuple[bytes, str, float]] = {}
+    made: dict[int, Shown] = {}
     composer = None
     if (
         previews is not None
@@ -753,8 +762,9 @@ def _log_results_and_frames(
     logged: list[int] = []  # each frame logged: its place in processed.frames
     scales: list[float] = []  # and its pixel scale
     times: list[float] = []
-    images: list[bytes] = []
+    images: list[bytes | None] = []
     encodings: list[str] = []
+    blank = 0  # frames that did not decode: logged without an image
 
     def send() -> None:
         if times:
@@ -775,6 +785,7 @@ def _log_results_and_frames(
             else:
                 shown = composer.show(frame.data, frame.encoding, measured.measurement)
         data, encoding, scale = shown
+        blank += data is None
         times.append(float(frame_t[i]))
         images.append(data)
         encodings.append(encoding)
@@ -783,11 +794,17 @@ def _log_results_and_frames(
         if len(times) >= _FRAMES_PER_BATCH:
             send()
     send()
+    if blank:
+        log.warning(
+            "%s: %d frame(s) did not decode; the recording shows them without an image",
+            log_path,
+            blank,
+        )
     return logged, scales, first
 
 
 def _measured_in_log_order(
-    log_path: Path, frames: list[MeasuredFrame], made: dict[int, tuple[bytes, str, float]]
+    log_path: Path, frames: list[MeasuredFrame], made: dict[int, Shown]
 ) -> Iterator[tuple[int, Any]]:
     """(sequence, the logged frame or None) of the log's frames in its order, the log
     read only where it is needed: not at all while ``made`` holds a preview of each

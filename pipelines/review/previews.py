@@ -73,6 +73,10 @@ _ROW_PX = 1024
 
 PREVIEW_MODES = ("region", "whole")
 
+#: A frame as the recording shows it: (JPEG bytes, or None for a frame that does not
+#: decode; "jpeg"; its pixel scale).
+Shown = tuple[bytes | None, str, float]
+
 #: What the recording's summary says of frames made by :class:`RegionPreviews`.
 REGION_NOTE = (
     "Frames at 1/{r} size: one a second, and every frame not measured, is shown whole; "
@@ -147,10 +151,9 @@ class RegionPreviews:
         self.region_fraction: list[float] = []
         self.spliced_frames = 0  # region frames encoded in part (:func:`_respliced`)
 
-    def show(
-        self, data: bytes, encoding: str, m: FrameMeasurement | None
-    ) -> tuple[bytes, str, float]:
-        """The frame as the recording shows it: (JPEG bytes, "jpeg", pixel scale)."""
+    def show(self, data: bytes, encoding: str, m: FrameMeasurement | None) -> Shown:
+        """The frame as the recording shows it: (JPEG bytes, "jpeg", pixel scale); no
+        bytes (None) for a frame that does not decode."""
         r = self.reduction
         self._since += 1
         if self.whole or m is None or not m.ok or encoding not in ("jpeg", "jpg"):
@@ -175,7 +178,10 @@ class RegionPreviews:
         segments = np.flatnonzero(hit[: grid.mcu_rows])
         decoded = np.repeat(cells, grid.per_seg, axis=1) if grid.per_seg > 1 else cells
         canvas = last.canvas.copy()
-        decode_reduced_into(layout, canvas[: grid.canvas_rows], segments, r)
+        try:
+            decode_reduced_into(layout, canvas[: grid.canvas_rows], segments, r)
+        except ValueError:  # a damaged segment: the frame as it decodes whole, if it does
+            return self._whole(data, None, None, None)
         # the background takes this frame's pixels where an earlier beam may have been
         # and this frame's is not
         clean = last.dirty & ~region
@@ -200,14 +206,17 @@ class RegionPreviews:
         layout: JpegLayout | None,
         region: NDArray[np.bool_] | None,
         grid: _Grid | None,
-    ) -> tuple[bytes, str, float]:
+    ) -> Shown:
         r = self.reduction
         self.whole_frames += 1
         if layout is None or region is None or grid is None:
             # not kept as the background: its region is unknown (not measured), or it
             # cannot be decoded in parts
             return whole_preview(data, r)
-        image = decode_reduced(bytes(data), r)
+        try:
+            image = decode_reduced(bytes(data), r)
+        except ValueError:  # not kept as the background: shown as it decodes, if it does
+            return whole_preview(data, r)
         canvas = np.zeros((grid.rows * _BLOCK, grid.cols * _BLOCK), np.uint8)
         canvas[: image.shape[0], : image.shape[1]] = image
         # the bytes preview() gives: the same reduced decode, encoded the same way
@@ -225,10 +234,15 @@ class RegionPreviews:
         return out, "jpeg", 1.0 / r
 
 
-def whole_preview(data: bytes, reduction: int) -> tuple[bytes, str, float]:
+def whole_preview(data: bytes, reduction: int) -> Shown:
     """A frame shown whole (:func:`vision.codec.preview`), as :meth:`RegionPreviews.show`
-    gives it; depends on nothing but the frame (previews made in several threads)."""
-    return preview(bytes(data), reduction), "jpeg", 1.0 / reduction
+    gives it; depends on nothing but the frame (previews made in several threads). A
+    frame that does not decode (another recorder's damaged JPEG in an intact log: its
+    measurement says so) is shown without an image: None for its bytes."""
+    try:
+        return preview(bytes(data), reduction), "jpeg", 1.0 / reduction
+    except ValueError:  # vision's DecodeError and the size checks
+        return None, "jpeg", 1.0 / reduction
 
 
 #: A centre line is drawn through fewer points, none further than this (drawn px) from it.

@@ -452,7 +452,7 @@ class RunViewer:
     def log_frame(
         self,
         t_s: float,
-        data: bytes,
+        data: bytes | None,
         encoding: str,
         overlays: FrameOverlay | None = None,
         *,
@@ -463,14 +463,15 @@ class RunViewer:
         Parameters
         ----------
         t_s : frame time on the run clock [s].
-        data : the JPEG or PNG bytes as logged.
+        data : the JPEG or PNG bytes as logged; None for a frame that did not decode (the
+            image is cleared at its time, as :meth:`log_frames` does).
         encoding : "jpeg" or "png".
         overlays : measurement overlays in pixels, or None (raw replay). A missing
             overlay clears the previous frame's one, so nothing stale is drawn.
         frame_index : value on the ``frame`` timeline (default: one more than the last).
         """
-        if not isinstance(data, bytes | bytearray | memoryview):
-            raise TypeError(f"data must be bytes, got {type(data).__name__}")
+        if data is not None and not isinstance(data, bytes | bytearray | memoryview):
+            raise TypeError(f"data must be bytes or None, got {type(data).__name__}")
         media = _MEDIA_TYPES.get(str(encoding).lower())
         if media is None:
             raise ValueError(f"encoding must be jpeg or png, got {encoding!r}")
@@ -482,11 +483,12 @@ class RunViewer:
         rec.set_time("time", duration=np.timedelta64(round(t_s * 1e9), "ns"))
         rec.set_time("frame", sequence=index)
         try:
-            rec.log(
-                "/camera/image",
-                rr.EncodedImage(contents=bytes(data), media_type=media),
-                strict=True,
+            image: Any = (
+                rr.Clear(recursive=False)
+                if data is None
+                else rr.EncodedImage(contents=bytes(data), media_type=media)
             )
+            rec.log("/camera/image", image, strict=True)
             if overlays is not None:
                 self._log_overlays(overlays, t_s)
         finally:
@@ -500,7 +502,7 @@ class RunViewer:
     def log_frames(
         self,
         t_s: ArrayLike,
-        data: Sequence[bytes],
+        data: Sequence[bytes | None],
         encodings: Sequence[str],
         overlays: Sequence[FrameOverlay | None] | OverlayColumns | None = None,
         *,
@@ -508,7 +510,9 @@ class RunViewer:
     ) -> None:
         """Many frames at once, as :meth:`log_frame` would log them one by one (the same
         entities, rows and times), sent as columns: one call per entity instead of about
-        ten per frame, which was most of a processed run's ``.rrd`` step (issue #19)."""
+        ten per frame, which was most of a processed run's ``.rrd`` step (issue #19). A
+        frame whose ``data`` is None (it did not decode) has no image: the image is
+        cleared at its time, so the last frame's is not shown for it."""
         t = _series("t_s", t_s)
         n = t.size
         n_over = n if overlays is None else _overlay_rows(overlays)
@@ -521,8 +525,8 @@ class RunViewer:
             raise ValueError("t_s must be finite")
         media = []
         for d, e in zip(data, encodings, strict=True):
-            if not isinstance(d, bytes | bytearray | memoryview):
-                raise TypeError(f"data must be bytes, got {type(d).__name__}")
+            if d is not None and not isinstance(d, bytes | bytearray | memoryview):
+                raise TypeError(f"data must be bytes or None, got {type(d).__name__}")
             m = _MEDIA_TYPES.get(str(e).lower())
             if m is None:
                 raise ValueError(f"encoding must be jpeg or png, got {e!r}")
@@ -531,12 +535,25 @@ class RunViewer:
         self._frame_index = first + n
         if n == 0:
             return
+        shown = np.array([d is not None for d in data], dtype=bool)
+        rows = np.flatnonzero(shown)
+        images = [d for d in data if d is not None]
         self._send_rows(
             "/camera/image",
             t,
             first,
-            np.arange(n),
-            rr.EncodedImage.columns(blob=_blob_array(data), media_type=media),
+            rows,
+            rr.EncodedImage.columns(
+                blob=_blob_array(images), media_type=[media[i] for i in rows.tolist()]
+            ),
+        )
+        blank = np.flatnonzero(~shown)
+        self._send_rows(
+            "/camera/image",
+            t,
+            first,
+            blank,
+            rr.Clear.columns(is_recursive=[False] * blank.size),
         )
         if overlays is not None:
             columns = (

@@ -141,3 +141,64 @@ def test_a_calibration_with_points_outside_the_logs_frames_is_refused(
     )
     assert str(cal) in err and "registration point (5100, 120) px lies outside the 2048" in err
     assert not out.exists()
+
+
+def _with_a_frame_cut(src: Path, dst: Path, frame: int) -> None:
+    """``src`` copied with the ``mcap`` library, as another recorder would write it, with
+    the JPEG of its ``frame``-th image cut to half: an intact log (its chunks' CRCs are of
+    the bytes as written) holding a frame that does not decode."""
+    from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer
+
+    with open(src, "rb") as f, open(dst, "wb") as g:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        writer = Writer(g, compression=CompressionType.ZSTD)
+        writer.start(profile=reader.get_header().profile, library="another recorder 1.0")
+        schemas = {
+            k: writer.register_schema(s.name, s.encoding, s.data)
+            for k, s in summary.schemas.items()
+        }
+        channels = {
+            k: writer.register_channel(
+                c.topic, c.message_encoding, schemas.get(c.schema_id, 0), dict(c.metadata)
+            )
+            for k, c in summary.channels.items()
+        }
+        for record in reader.iter_metadata():
+            writer.add_metadata(record.name, dict(record.metadata))
+        k = 0
+        for _, channel, message in reader.iter_messages(log_time_order=True):
+            data = message.data
+            if channel.topic == "/camera/image":
+                if k == frame:
+                    image = CompressedImage()
+                    image.ParseFromString(data)
+                    image.data = image.data[: len(image.data) // 2]
+                    data = image.SerializeToString()
+                k += 1
+            writer.add_message(
+                channels[channel.id], message.log_time, data, message.publish_time, message.sequence
+            )
+        writer.finish()
+
+
+def test_a_frame_that_does_not_decode_is_recorded_without_an_image(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    # it is reported not measured, the results and the recording are written (the
+    # recording shows that frame without an image), and the log is left as it was
+    log = tmp_path / "cut-frame.mcap"
+    _with_a_frame_cut(SAMPLE, log, 20)
+    before = log.read_bytes()
+    out, rrd = tmp_path / "r.nc", tmp_path / "r.rrd"
+    argv = ["process", str(log), "--out", str(out), "--rrd", str(rrd), "--frame-previews", "region"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "error:" not in err
+    assert "1 frame(s) did not decode; the recording shows them without an image" in caplog.text
+    assert "1 of " in caplog.text and "frames not measured: cannot decode frame" in caplog.text
+    assert out.is_file() and rrd.is_file()
+    assert log.read_bytes() == before

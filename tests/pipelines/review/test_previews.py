@@ -226,9 +226,11 @@ def test_whole_previews_made_several_at_a_time_keep_the_logs_order_up_to_a_failu
     assert _whole_previews_of(frames, monkeypatch) == {
         f.sequence: (preview(f.data, 2), "jpeg", 0.5) for f in frames
     }
-    # a frame that does not decode: those before it, none after (made again later)
+    # a frame that does not decode: shown without an image (None), the others as they are
     broken = [*frames[:7], _Frame(17, b"\xff\xd8 not a JPEG"), *frames[8:]]
-    assert sorted(_whole_previews_of(broken, monkeypatch)) == [f.sequence for f in frames[:7]]
+    assert _whole_previews_of(broken, monkeypatch) == {
+        f.sequence: (None if f.sequence == 17 else preview(f.data, 2), "jpeg", 0.5) for f in broken
+    }
     # the budget: frames kept while those kept before are within it, as one by one
     sizes = np.cumsum([len(preview(f.data, 2)) for f in frames])
     monkeypatch.setattr(overlays, "PREVIEW_BUDGET_BYTES", int(sizes[4]))

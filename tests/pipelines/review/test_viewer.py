@@ -385,3 +385,20 @@ def test_frames_sent_as_columns_are_the_frames_logged_one_by_one(tmp_path: Path)
         overlays = OverlayColumns.from_overlays([f[3] for f in frames])
         viewer.log_frame_overlays([f[0] for f in frames], overlays, first_index=first)
     assert _all_rows(split) == expected
+
+
+def test_a_frame_that_did_not_decode_is_logged_without_an_image(tmp_path: Path) -> None:
+    # its time has no image, and the image is cleared there: the frame before it is not
+    # shown in its place
+    path = tmp_path / "frames.rrd"
+    t = [0.0, 0.1, 0.2]
+    with open_viewer("beambench-test", rrd_path=path) as viewer:
+        viewer.log_frames(t, [_png(), None, _png()], ["png", "png", "png"])
+        assert viewer.frame_index == 3
+    blobs = _rows(path, "/camera/image", "EncodedImage:blob")
+    assert [r[0] for r in blobs] == [0, 200_000_000]
+    cleared = _rows(path, "/camera/image", "Clear:is_recursive")
+    assert [r[0] for r in cleared] == [100_000_000]
+    with open_viewer("beambench-test", rrd_path=tmp_path / "bad.rrd") as viewer:
+        with pytest.raises(TypeError, match="bytes or None"):
+            viewer.log_frames([0.0], ["not bytes"], ["png"])  # type: ignore[list-item]
