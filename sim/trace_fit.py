@@ -444,6 +444,17 @@ class FittedTraceDrive:
                 )
                 self.dropped_power_rad2 = np.zeros(0)
 
+    def time_scale_s(self) -> float:
+        """The shortest time scale of the fitted motion, s: the period of the highest kept
+        harmonic and the spline's knot spacing, the shorter (see
+        :func:`sim.drives.drive_time_scale_s`)."""
+        scale = math.inf
+        if self._n_harm:
+            scale = 2.0 * math.pi / (self._omega * self._n_harm)
+        if self._spline is not None:
+            scale = min(scale, float(self.settings["knot_spacing_s"]))
+        return scale
+
     def harmonic_uncertainty(self) -> tuple[float, int, float, FloatArray] | None:
         """What the fit leaves uncertain, for a harmonic fit (None for a spline alone):
         ``(fundamental rad/s, harmonics kept, V, dropped)``: each kept harmonic's cosine and
