@@ -73,8 +73,8 @@ def _gcv(rss: float, n: int, p: int) -> float:
 
 def _bspline_basis(knots: FloatArray, span: NDArray[np.intp], x: FloatArray) -> FloatArray:
     """The ``SPLINE_DEGREE + 1`` B-splines that are nonzero on each knot interval
-    ``[knots[span], knots[span + 1])``, at the points ``x`` in it: (n, k + 1), the first
-    column the B-spline starting ``k`` knots before ``span`` (Cox-de Boor, vectorised over
+    ``[knots[span], knots[span + 1])``, at the points ``x`` in it: (k + 1, n), the first
+    row the B-spline starting ``k`` knots before ``span`` (Cox-de Boor, vectorised over
     the points: Piegl and Tiller's ``BasisFuns``)."""
     k = SPLINE_DEGREE
     n_b = np.zeros((k + 1, x.size))
@@ -90,7 +90,50 @@ def _bspline_basis(knots: FloatArray, span: NDArray[np.intp], x: FloatArray) -> 
             n_b[r] = saved + right[r + 1] * temp
             saved = left[d - r] * temp
         n_b[d] = saved
-    return n_b.T
+    return n_b
+
+
+# The uniform quintic B-spline's pieces: on a knot interval with local coordinate u in
+# [0, 1), its six nonzero B-splines are [1, u, .., u^5] @ this (rows: powers; columns: the
+# B-spline starting five intervals before first): M_ij = C(k, i) sum_{l >= j} (-1)^(l - j)
+# C(k + 1, l - j) (k - l)^(k - i) / k!
+_UNIFORM_QUINTIC = (
+    np.array(
+        [
+            [1.0, 26.0, 66.0, 26.0, 1.0, 0.0],
+            [-5.0, -50.0, 0.0, 50.0, 5.0, 0.0],
+            [10.0, 20.0, -60.0, 20.0, 10.0, 0.0],
+            [-10.0, 20.0, 0.0, -20.0, 10.0, 0.0],
+            [5.0, -20.0, 30.0, -20.0, 5.0, 0.0],
+            [-1.0, 5.0, -10.0, 10.0, -5.0, 1.0],
+        ]
+    )
+    / 120.0
+)
+
+
+def _uniform_bspline_basis(
+    knots: FloatArray, interval: NDArray[np.intp], x: FloatArray, spacing_s: float, n_int: int
+) -> FloatArray:
+    """:func:`_bspline_basis` for :func:`_lsq_spline`'s knots (``n_int`` intervals
+    ``spacing_s`` apart from ``knots[k]``, the ends clamped, the last stretched): where the
+    interval's 2 k surrounding knots are uniform, the uniform B-spline's polynomial pieces
+    (one product, a third of the recursion's time; the same values to rounding), near the
+    ends the recursion."""
+    k = SPLINE_DEGREE
+    span = interval + k
+    u = (x - knots[span]) / spacing_s
+    powers = np.empty((k + 1, x.size))
+    powers[0] = 1.0
+    for d in range(1, k + 1):
+        np.multiply(powers[d - 1], u, out=powers[d])
+    basis = _UNIFORM_QUINTIC.T @ powers
+    # the B-splines on interval j use knots j + 1 .. j + 2 k: uniform for k - 1 <= j <=
+    # n_int - 1 - k
+    edge = (interval < k - 1) | (interval > n_int - 1 - k)
+    if edge.any():
+        basis[:, edge] = _bspline_basis(knots, span[edge], x[edge])
+    return basis
 
 
 def _lsq_spline(
@@ -124,26 +167,26 @@ def _lsq_spline(
     two_d = y.ndim == 2
     ys = y if two_d else y[:, None]
     interval = np.searchsorted(inner, t, side="right")  # 0 .. n_int - 1, non-decreasing
-    basis = _bspline_basis(knots, interval + k, t)
+    basis = _uniform_bspline_basis(knots, interval, t, spacing_s, n_int)
     starts = np.searchsorted(interval, np.arange(n_int))
-    outer = (basis[:, :, None] * basis[:, None, :]).reshape(t.size, -1)
-    gram = np.add.reduceat(outer, starts, axis=0).reshape(n_int, k + 1, k + 1)
-    proj = np.add.reduceat(basis[:, :, None] * ys[:, None, :], starts, axis=0)
+    # (k + 1, n): the sums over the samples run along each B-spline's contiguous values
+    gram = np.add.reduceat(basis[:, None, :] * basis[None, :, :], starts, axis=2)
+    proj = np.add.reduceat(basis[:, None, :] * ys.T[None, :, :], starts, axis=2)
     # the lower band of B^T B (row d: the d-th subdiagonal) and B^T y: interval j adds
     # its (k + 1) x (k + 1) block at the coefficients j .. j + k
     band = np.zeros((k + 1, p))
     rhs = np.zeros((p, ys.shape[1]))
     for a in range(k + 1):
-        rhs[a : a + n_int] += proj[:, a]
+        rhs[a : a + n_int] += proj[a].T
         for d in range(k + 1 - a):
-            band[d, a : a + n_int] += gram[:, a, a + d]
+            band[d, a : a + n_int] += gram[a, a + d]
     try:
         coef = cho_solve_banded((cholesky_banded(band, lower=True), True), rhs)
     except (ValueError, np.linalg.LinAlgError):
         return None
     # each sample's k + 1 coefficients, (n, m, k + 1), in one gather
     window = np.lib.stride_tricks.sliding_window_view(coef, k + 1, axis=0)[interval]
-    values = np.einsum("na,nma->nm", basis, window)
+    values = np.einsum("an,nma->nm", basis, window)
     if not two_d:
         coef, values = coef[:, 0], values[:, 0]
     return BSpline.construct_fast(knots, coef, k), p, values
