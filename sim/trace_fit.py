@@ -570,3 +570,19 @@ class FittedTraceDrive:
         t = self._check(t_s)
         out = self._harmonics(t, 2)
         return out if self._d2 is None else out + self._d2(t)
+
+    def rate_accel(self, t_s: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """:meth:`rate` and :meth:`accel` at the same times in one call, bit for bit theirs
+        (the fixed-step FE beam asks for both at every stage time: one check and one
+        cosine and sine of the phases instead of two, without the kept times' lookup)."""
+        t = self._check(t_s)
+        if self._n_harm == 0:
+            rate, accel = np.zeros(t.shape), np.zeros(t.shape)
+        else:
+            phase = np.multiply.outer(t - self._t_ref_s, self._w)
+            c, s = np.cos(phase), np.sin(phase)
+            (a1, b1), (a2, b2) = self._ab[1], self._ab[2]
+            rate, accel = np.asarray(c @ a1 + s @ b1), np.asarray(c @ a2 + s @ b2)
+        if self._d1 is not None and self._d2 is not None:
+            rate, accel = rate + self._d1(t), accel + self._d2(t)
+        return rate, accel
