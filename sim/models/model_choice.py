@@ -38,7 +38,9 @@ quasi-statically and the error drops (paper scene: measured C = 1.2e-3, estimate
 The integrator runs at rtol = atol = tol (atol in m and m/s); its global error, measured,
 is about 0.35 rtol.
 
-Where the beam is damped enough (a1 > 0, the second bending mode overdamped: the modes
+Where the adaptive integrator's rtol would be tight (the gauged runs, 2e-6: there the
+fixed steps are the cheaper, see :data:`FIXED_BELOW_RTOL`), the beam damped enough
+(a1 > 0, the second bending mode overdamped: the modes
 above it respond quasi-statically and the L-stable method damps their start in a step)
 and the drive says how smooth it is (:func:`sim.drives.drive_time_scale_s`: the period of
 its highest harmonic, a spline's knot spacing; at least 4 steps in it), the FE runs
@@ -133,6 +135,12 @@ FIXED_STEP_S = 0.025
 FIXED_STAGES = 5
 FIXED_MIN_STEP_S = 0.00625
 FIXED_STEPS_PER_DRIVE_SCALE = 4
+# Fixed steps where the adaptive integrator would run at this rtol or tighter (the gauged
+# runs: STRAIN_RTOL_PER_TOL, 2e-6). Measured, auto on the paper's scene (5 s, CPU s,
+# adaptive / fixed): without gauges (rtol 1e-4, 8.6e-5, 8.6e-6 at tol 1e-3, 1e-4, 1e-5)
+# 0.07 / 0.09, 0.08 / 0.11, 0.13 / 0.21; with the four gauges (rtol 2e-6) 0.21 / 0.14,
+# 0.23 / 0.16, 0.33 / 0.34 (7 elements); the rig's minute (5 elements) 0.36 / 0.20
+FIXED_BELOW_RTOL = 5e-6
 # The first fixed step is taken in parts from this share of it, each twice the last: from
 # rest with the hub accelerating (the rig's runs) the fast modes start with a layer that a
 # whole first step's dense output carries to the output times inside it, the same at h
@@ -176,13 +184,16 @@ def _fe_constant(beam: BeamProperties, delta_m: float, a0: float, a1: float) -> 
     return C_FE_UNDAMPED * (delta_m / beam.length_m) ** 2 / max(1.0, _zeta_2(beam, a0, a1))
 
 
-def _fixed_step(beam: BeamProperties, drive: Drive, a0: float, a1: float) -> float | None:
+def _fixed_step(
+    beam: BeamProperties, drive: Drive, a0: float, a1: float, rtol: float = 0.0
+) -> float | None:
     """The first fixed step of the FE runs, s, or None where they run adaptive: the
-    second bending mode overdamped (the modes above it respond quasi-statically and the
-    L-stable method damps their start-up in a step; an undamped beam's fast modes would
-    have to be resolved), the drive's shortest time scale known and at least
-    :data:`FIXED_STEPS_PER_DRIVE_SCALE` steps of :data:`FIXED_MIN_STEP_S` long."""
-    if a1 <= 0.0 or _zeta_2(beam, a0, a1) < 1.0:
+    adaptive integrator's ``rtol`` at most :data:`FIXED_BELOW_RTOL` (looser, it is the
+    cheaper), the second bending mode overdamped (the modes above it respond
+    quasi-statically and the L-stable method damps their start-up in a step; an undamped
+    beam's fast modes would have to be resolved), the drive's shortest time scale known
+    and at least :data:`FIXED_STEPS_PER_DRIVE_SCALE` steps of :data:`FIXED_MIN_STEP_S`."""
+    if rtol > FIXED_BELOW_RTOL or a1 <= 0.0 or _zeta_2(beam, a0, a1) < 1.0:
         return None
     scale = drive_time_scale_s(drive)
     if scale is None:
@@ -443,7 +454,7 @@ def simulate_auto(
         budget = ((1.0 - FE_SHARE) * t_tol, (1.0 - FE_SHARE) * s_tol)
         time_per_run = time_per_rtol * rtol_fe
         runner = _FeRunner(beam, drive, common, rtol_fe, time_per_run, budget)
-        runner.step_s = _fixed_step(beam, drive, a0, a1)
+        runner.step_s = _fixed_step(beam, drive, a0, a1, rtol_fe)
         # the first run: the coarse mesh of the strain check (over its head) or the result
         fe_run = runner.single(ne, t_all[head]) if gauged else runner.run(ne, t_all)
         # the strains: curvature recovered from the nodes, its error estimated by the
