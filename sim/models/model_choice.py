@@ -380,7 +380,9 @@ def simulate_auto(
         or ``"fe-corot n_elements=4"``), ``settings["auto_error_estimate"]`` (the estimate,
         relative), ``settings["auto_reason"]`` (one sentence) and
         ``settings["auto_parts"]`` (the parts), ``settings["auto_station_error_estimate"]``
-        and ``settings["auto_strain_error_estimate"]`` (see the module docstring).
+        and ``settings["auto_strain_error_estimate"]``, ``settings["auto_time_integration"]``
+        (the FE's integrator, fixed step or adaptive, and how its time error is estimated;
+        see the module docstring).
         ``wall_time_s`` includes the trial runs that made the choice.
     """
     t_tol = float(tol)
