@@ -32,9 +32,10 @@ FOUR_BAR = FourBar(0.35, 0.05, 0.335, 0.07)  # not the bench's 0.34/0.045/0.33/0
 
 def _measured(
     duration_s: float, seed: int, angle_of_t: object = None
-) -> tuple[np.ndarray, np.ndarray, FourBarDrive, float]:
+) -> tuple[np.ndarray, np.ndarray, FourBarDrive, Any]:
     """400 Hz samples of the four-bar angle as the DAQ delivers them, the true drive on
-    the output clock, and the group delay the DAQ removed."""
+    the output clock, and the anti-alias filter's design (its group delay the DAQ
+    removed)."""
     true = FourBarDrive(FOUR_BAR, 2 * math.pi * CRANK_HZ, about="absolute", crank_phase_rad=1.1)
     design = design_antialias(DaqConfig(), FS_ACQ_HZ)
     n = round((duration_s + 0.5) * FS_ACQ_HZ)
