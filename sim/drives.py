@@ -52,6 +52,11 @@ class SinusoidDrive:
         w = self.omega_rad_s
         return -self.amplitude_rad * w * w * np.sin(w * t + self.phase_rad)
 
+    def time_scale_s(self) -> float:
+        """The shortest period in the motion, s (see :func:`drive_time_scale_s`)."""
+        w = abs(self.omega_rad_s)
+        return 2.0 * math.pi / w if w > 0.0 else math.inf
+
 
 def _times(t_s: ArrayLike) -> FloatArray:
     return np.asarray(t_s, dtype=float)
@@ -308,3 +313,21 @@ class FixedDrive:
 
     def accel(self, t_s: ArrayLike) -> FloatArray:
         return np.zeros(np.shape(t_s))
+
+    def time_scale_s(self) -> float:
+        """No motion: no time scale (see :func:`drive_time_scale_s`)."""
+        return math.inf
+
+
+def drive_time_scale_s(drive: object) -> float | None:
+    """The shortest time scale of a drive's motion, s: the period of its highest harmonic,
+    or the knot spacing of a spline (inside which it is a polynomial); ``math.inf`` for a
+    hub at rest. None when the drive does not say (:class:`TraceDrive`'s cubic smoothing
+    spline has a knot at every sample; :class:`SpinUpDrive`'s and :class:`FourBarDrive`'s
+    motions are not described by one). A fixed-step integrator resolves the drive only
+    with steps well below it (:mod:`sim.models.model_choice`)."""
+    method = getattr(drive, "time_scale_s", None)
+    if method is None:
+        return None
+    scale = float(method())
+    return scale if scale > 0.0 else None

@@ -159,6 +159,7 @@ def simulate_fe(
     curvature: str = "element",
     fixed_step_s: float | None = None,
     stages: int = 3,
+    first_step_s: float | None = None,
 ) -> SimResult:
     """Simulate the beam clamped to a hub whose rotation ``drive`` prescribes.
 
@@ -200,14 +201,19 @@ def simulate_fe(
     fixed_step_s : ``method="radau5"`` only: every step this long (the last one shortened),
         no error estimate or step control (``rtol``, ``atol`` then only scale Newton's
         stopping test), as Exudyn's fixed-step integrators; the error is not estimated, so
-        it is for studies and benchmarks that measure it (``bench sim``), not for ``auto``.
-        A Newton iteration that does not converge raises (on the rig's beam and the
-        paper's drive, steps above ~0.03 s do not: the axial stiffness EA turns the
-        iterates' slope rotations into large spurious stretching forces). At a fixed
+        it is for studies and benchmarks that measure it (``bench sim``; ``auto`` runs
+        each mesh at h and h / 2, :mod:`sim.models.model_choice`). A step whose Newton
+        iteration does not converge is taken in parts, down to 1/64 of it, then it raises
+        (on the rig's beam and the paper's drive, steps above ~0.03 s do not converge: the
+        axial stiffness EA turns the iterates' slope rotations into large spurious
+        stretching forces; at 3 stages; a start from rest with the hub accelerating fails
+        at shorter steps, see :func:`sim.solvers.radau.radau5`). At a fixed
         step ``corot`` with ``a1 > 0`` and the paper law evaluates fused (closed-form
         stage Jacobians, see :class:`sim.models.fe_ancf.AncfSystem`): 1.6x faster, the
         same answer to rounding (3e-11 of the tip on the paper's scene); adaptive runs
         keep the complex-step evaluation, bit for bit.
+    first_step_s : with ``fixed_step_s`` only: the first step is taken in parts from this
+        one, each twice the last (see :func:`sim.solvers.radau.radau5`).
     stages : with ``fixed_step_s`` (``corot``), the Radau IIA method's stages: 3 (default,
         order 5), 4 (order 7) or 5 (order 9). On the paper's damped scene the higher orders
         take longer steps at equal error, and their Newton iteration converges at longer
@@ -250,6 +256,8 @@ def simulate_fe(
         fixed_step_s = check_positive("fixed_step_s", fixed_step_s)
         if method != "radau5":
             raise SimInputError("fixed_step_s", f"needs method 'radau5', got {method!r}")
+    elif first_step_s is not None:
+        raise SimInputError("first_step_s", "needs fixed_step_s")
     if stages != 3 and (fixed_step_s is None or form != "corot"):
         raise SimInputError(
             "stages", f"above 3 need fixed_step_s and formulation 'corot', got {stages!r}"
@@ -283,6 +291,7 @@ def simulate_fe(
         second_order=SECOND_ORDER,
         fixed_step_s=fixed_step_s,
         stages=stages,
+        first_step_s=first_step_s,
     )
     lat, lon, strain = _deflections(system, traj.y, beam, stations, gauges)
     extra: dict[str, Any] = {} if fixed_step_s is None else {"fixed_step_s": fixed_step_s}

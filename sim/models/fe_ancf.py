@@ -667,8 +667,12 @@ class AncfSystem:
         key = ts.tobytes()
         w = self._hub_cache.get(key)
         if w is None:
-            om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
-            al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
+            both = getattr(self.drive, "rate_accel", None)  # one call where the drive has it
+            if both is not None:
+                om, al = (np.asarray(x, dtype=np.float64) for x in both(ts))
+            else:
+                om = np.asarray(self.drive.rate(ts), dtype=np.float64)  # type: ignore[attr-defined]
+                al = np.asarray(self.drive.accel(ts), dtype=np.float64)  # type: ignore[attr-defined]
             w = np.array([np.ones(ts.size), om * om, -al, -2.0 * om])
             if len(self._hub_cache) >= 4:
                 self._hub_cache.clear()

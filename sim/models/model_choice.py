@@ -26,7 +26,7 @@ quick modal run):
   (4 and 10 rad/s, undamped: C = 0.29, 0.25) and the paper's scene once the lag is taken out
   (C = 0.75).
 - **modal truncation**: the change of the tip history from n to n + 1 modes.
-- **time integration**: the modal solver's rtol is set to tol / 20.
+- **time integration**: the modal solver's rtol is set to tol / 20 (the FE's: below).
 
 If the modal estimate is below tol the modal model runs with n + 1 modes. Otherwise the
 exact finite elements (``corot``, Radau IIA with full Newton, :mod:`sim.solvers.radau`) run with the
@@ -37,6 +37,28 @@ bending mode is overdamped (zeta_2 = a0 / (2 w_2) + a1 w_2 / 2 > 1) the higher m
 quasi-statically and the error drops (paper scene: measured C = 1.2e-3, estimate 5.6e-3).
 The integrator runs at rtol = atol = tol (atol in m and m/s); its global error, measured,
 is about 0.35 rtol.
+
+Where the adaptive integrator's rtol would be tight (the gauged runs, 2e-6: there the
+fixed steps are the cheaper, see :data:`FIXED_BELOW_RTOL`), the beam damped enough
+(a1 > 0, the second bending mode overdamped: the modes
+above it respond quasi-statically and the L-stable method damps their start in a step)
+and the drive says how smooth it is (:func:`sim.drives.drive_time_scale_s`: the period of
+its highest harmonic, a spline's knot spacing; at least 4 steps in it), the FE runs
+instead take fixed steps of the 5-stage Radau IIA (order 9, closed-form stage Jacobians),
+each mesh at h = 0.025 s and at h / 2. The h / 2 run is returned and the change from h to
+h / 2 is its stated time error, measured, not assumed: it is the h run's error (within
+2 % on the paper's scene and on a fitted four-bar trace, tested), and the h / 2 run's own
+is 30-1000x below it.
+While it is above its share of the tolerance the step is halved again (down to 6.25 ms);
+a Newton iteration that fails even in parts, or a time error still too large, hands
+the runs back to the adaptive integrator. The first step starts in parts (h / 64, doubling):
+from rest with the hub accelerating, the fast modes' start-up layer would otherwise sit in
+the first step's dense output, the same at h and h / 2 and so unseen by the halving.
+On the rig's minute (the measured four-bar trace, steady state after 3.2 s, 5 elements)
+the FE runs took 0.42 CPU s adaptive, 0.2 s so; the time error stated 9.4e-7 of the tip
+for an actual 2.9e-8, the strains' 2.6e-6 for 1e-7 (adaptive at rtol 2e-6: 7e-7 stated
+for both, actual 2.8e-7 and, the strains, 2.2e-6; against rtol-1e-10 runs).
+``settings["auto_time_integration"]`` says which ran, the step and the estimate.
 
 Every output is answered for, not only the tip:
 
@@ -65,6 +87,7 @@ import logging
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -73,8 +96,8 @@ from numpy.typing import ArrayLike
 from sim.beam import BeamProperties
 from sim.checks import check_choice
 from sim.config import DAMPING_LAWS
-from sim.drives import Drive
-from sim.errors import SimInputError
+from sim.drives import Drive, drive_time_scale_s
+from sim.errors import IntegrationError, SimInputError
 from sim.models.fe import simulate_fe
 from sim.models.modal import simulate_modal
 from sim.result import SimResult
@@ -100,6 +123,35 @@ STRAIN_CHECK_S = 5.0
 # (paper's scene) rtol 1e-5 leaves 2.5e-3 RMS, 1e-6 leaves 4e-4 (the mesh's share).
 STRAIN_RTOL_PER_TOL = 1e-3
 PROBE_RTOL = 1e-3
+# Fixed steps (issue #19): where the beam is damped enough and the drive smooth
+# (:func:`_fixed_step`), the FE runs take fixed steps of the 5-stage Radau IIA (order 9,
+# closed-form stage Jacobians: :func:`sim.models.fe.simulate_fe`), at h and at h / 2:
+# the h / 2 run is returned, and the change from h to h / 2 is its time error estimate
+# (the h run's error, measured; the h / 2 run's own is 2^-6 to 2^-9 of it at the method's
+# stage and classical orders). Halved again while that is above the time's share of the
+# tolerance, adaptive below FIXED_MIN_STEP_S. 0.025 s: on the rig's run (bench four-bar
+# trace, a0 = a1 = 0.1) Newton takes every step at 0.025 s but one in ten at 0.03 s
+# (they are then split: :func:`sim.solvers.radau.radau5`); 0.05 s only on the paper's
+# sinusoid.
+FIXED_STEP_S = 0.025
+FIXED_STAGES = 5
+FIXED_MIN_STEP_S = 0.00625
+FIXED_STEPS_PER_DRIVE_SCALE = 4
+# Fixed steps where the adaptive integrator would run at this rtol or tighter (the gauged
+# runs: STRAIN_RTOL_PER_TOL, 2e-6). Measured, auto on the paper's scene (5 s, CPU s,
+# adaptive / fixed): without gauges (rtol 1e-4, 8.6e-5, 8.6e-6 at tol 1e-3, 1e-4, 1e-5)
+# 0.07 / 0.09, 0.08 / 0.11, 0.13 / 0.21; with the four gauges (rtol 2e-6) 0.21 / 0.14,
+# 0.23 / 0.16, 0.33 / 0.34 (7 elements); the rig's minute (5 elements) 0.36 / 0.20
+FIXED_BELOW_RTOL = 5e-6
+# The first fixed step is taken in parts from this share of it, each twice the last: from
+# rest with the hub accelerating (the rig's runs) the fast modes start with a layer that a
+# whole first step's dense output carries to the output times inside it, the same at h
+# and at h / 2 (5.7e-7 of the tip at 2.5 and 5 ms on the rig's run, unseen by the halving)
+FIXED_START = 1.0 / 64.0
+# Newton's stopping tolerance at fixed steps (rtol = atol; 3e-5 or looser spoils the next
+# step's predictor, see simulate_fe's ``stages``), no looser than a tenth of the time's
+# share of the tolerance
+FIXED_NEWTON_RTOL = 1e-7
 
 
 def _rel_change(a: SimResult, b: SimResult) -> float:
@@ -122,17 +174,167 @@ def _strain_change(a: SimResult, b: SimResult, n_samples: int | None = None) -> 
     return float(np.max(np.sqrt(np.mean((sa - sb) ** 2, axis=0)) / scale))
 
 
-def _fe_constant(beam: BeamProperties, delta_m: float, a0: float, a1: float) -> float:
-    """C_FE of the discretisation estimate C_FE N^-4 (see the module docstring)."""
+def _zeta_2(beam: BeamProperties, a0: float, a1: float) -> float:
+    """The second bending mode's damping ratio under Eq. 28's a0 M + a1 K."""
     w2 = BETA_2**2 * math.sqrt(beam.bending_stiffness_n_m2 / beam.mass_per_length_kg_m)
     w2 /= beam.length_m**2
-    zeta_2 = a0 / (2.0 * w2) + a1 * w2 / 2.0
-    return C_FE_UNDAMPED * (delta_m / beam.length_m) ** 2 / max(1.0, zeta_2)
+    return a0 / (2.0 * w2) + a1 * w2 / 2.0
+
+
+def _fe_constant(beam: BeamProperties, delta_m: float, a0: float, a1: float) -> float:
+    """C_FE of the discretisation estimate C_FE N^-4 (see the module docstring)."""
+    return C_FE_UNDAMPED * (delta_m / beam.length_m) ** 2 / max(1.0, _zeta_2(beam, a0, a1))
+
+
+def _fixed_step(
+    beam: BeamProperties, drive: Drive, a0: float, a1: float, rtol: float = 0.0
+) -> float | None:
+    """The first fixed step of the FE runs, s, or None where they run adaptive: the
+    adaptive integrator's ``rtol`` at most :data:`FIXED_BELOW_RTOL` (looser, it is the
+    cheaper), the second bending mode overdamped (the modes above it respond
+    quasi-statically and the L-stable method damps their start-up in a step; an undamped
+    beam's fast modes would have to be resolved), the drive's shortest time scale known
+    and at least :data:`FIXED_STEPS_PER_DRIVE_SCALE` steps of :data:`FIXED_MIN_STEP_S`."""
+    if rtol > FIXED_BELOW_RTOL or a1 <= 0.0 or _zeta_2(beam, a0, a1) < 1.0:
+        return None
+    scale = drive_time_scale_s(drive)
+    if scale is None:
+        return None
+    step = min(FIXED_STEP_S, scale / FIXED_STEPS_PER_DRIVE_SCALE)
+    return step if step >= 2.0 * FIXED_MIN_STEP_S else None
 
 
 def _fe_elements(c_fe: float, budget: float) -> int:
     n = max(2, math.ceil((c_fe / budget) ** 0.25 - 1e-9))
     return min(n, 64)
+
+
+class _TimeErrorTooLarge(Exception):
+    """The fixed steps' measured time error stays above its share of the tolerance."""
+
+
+@dataclass(frozen=True)
+class _FeRun:
+    """An FE run of ``auto`` with its time-integration error estimate: ``time_error`` of
+    the stations' deflections (relative to the largest tip deflection), and
+    ``strain_time_error`` of the gauges' strains (RMS, relative to each gauge's RMS)."""
+
+    result: SimResult
+    time_error: float
+    strain_time_error: float
+    step_s: float | None  # the result's fixed step; None: adaptive
+    runner: _FeRunner
+
+    def again(self, n_elements: int, t_s: np.ndarray) -> _FeRun:
+        return self.runner.run(n_elements, t_s)
+
+    def describe(self) -> str:
+        if self.step_s is None:
+            return (
+                f"adaptive radau5 at rtol {self.runner.rtol:.2g}, time error "
+                f"~{self.time_error:.2g} ({self.runner.time_per_rtol:g} rtol)"
+            )
+        return (
+            f"{FIXED_STAGES}-stage Radau IIA at fixed {self.step_s:g} s steps, time error "
+            f"{self.time_error:.2g} (strains {self.strain_time_error:.2g}), the change "
+            f"from {2.0 * self.step_s:g} s"
+        )
+
+    def settings(self) -> dict[str, Any]:
+        if self.step_s is None:
+            return {
+                "method": "radau5 adaptive",
+                "rtol": self.runner.rtol,
+                "estimate": f"{self.runner.time_per_rtol:g} rtol",
+            }
+        return {
+            "method": f"radau IIA {FIXED_STAGES} stages, fixed step",
+            "step_s": self.step_s,
+            "estimate": f"the change from step {2.0 * self.step_s:g} s",
+            "time_error": self.time_error,
+            "strain_time_error": self.strain_time_error,
+        }
+
+
+class _FeRunner:
+    """The FE runs of ``auto``: at fixed steps from ``step_s`` (halved while the measured
+    time error is above ``budget``, see :data:`FIXED_STEP_S`) or, with ``step_s`` None
+    or once the fixed steps fail, adaptive radau5 at ``rtol`` (time error
+    ``time_per_rtol`` rtol, measured)."""
+
+    def __init__(
+        self,
+        beam: BeamProperties,
+        drive: Drive,
+        common: dict[str, Any],
+        rtol: float,
+        time_per_run: float,
+        budget: tuple[float, float],
+    ) -> None:
+        self.beam, self.drive, self.common = beam, drive, common
+        self.rtol = rtol
+        self.time_per_rtol = time_per_run / rtol
+        self.time_per_run = time_per_run
+        self.budget = budget
+        self.newton_rtol = min(FIXED_NEWTON_RTOL, 0.1 * budget[0])
+        self.step_s: float | None = None
+
+    def _simulate(self, n_elements: int, t_s: np.ndarray, step_s: float | None) -> SimResult:
+        if step_s is None:
+            return simulate_fe(
+                self.beam, self.drive, t_s, n_elements=n_elements, rtol=self.rtol,
+                atol=self.rtol, method="radau5", curvature="recovered", **self.common,
+            )  # fmt: skip
+        return simulate_fe(
+            self.beam, self.drive, t_s, n_elements=n_elements, rtol=self.newton_rtol,
+            atol=self.newton_rtol, method="radau5", curvature="recovered",
+            fixed_step_s=step_s, stages=FIXED_STAGES, first_step_s=step_s * FIXED_START,
+            **self.common,
+        )  # fmt: skip
+
+    def _adaptive(self, n_elements: int, t_s: np.ndarray) -> _FeRun:
+        res = self._simulate(n_elements, t_s, None)
+        return _FeRun(res, self.time_per_run, self.time_per_run, None, self)
+
+    def single(self, n_elements: int, t_s: np.ndarray) -> _FeRun:
+        """One run at the first fixed step (or adaptive), its time error not estimated:
+        the coarse mesh of the strain check, whose change to the finer mesh holds it."""
+        if self.step_s is not None:
+            try:
+                res = self._simulate(n_elements, t_s, self.step_s)
+                return _FeRun(res, math.nan, math.nan, self.step_s, self)
+            except IntegrationError as exc:
+                self._give_up(exc)
+        return self._adaptive(n_elements, t_s)
+
+    def run(self, n_elements: int, t_s: np.ndarray) -> _FeRun:
+        """The run returned, with its time error estimated."""
+        if self.step_s is not None:
+            try:
+                return self._halved(n_elements, t_s, self.step_s)
+            except (IntegrationError, _TimeErrorTooLarge) as exc:
+                self._give_up(exc)
+        return self._adaptive(n_elements, t_s)
+
+    def _give_up(self, exc: Exception) -> None:
+        logger.info("auto: fixed steps from %.3g s not taken (%s): adaptive", self.step_s, exc)
+        self.step_s = None
+
+    def _halved(self, n_elements: int, t_s: np.ndarray, step_s: float) -> _FeRun:
+        coarse = self._simulate(n_elements, t_s, step_s)
+        while True:
+            fine = self._simulate(n_elements, t_s, 0.5 * step_s)
+            e_time = _rel_change(coarse, fine)
+            e_strain = _strain_change(coarse, fine)
+            if e_time <= self.budget[0] and e_strain <= self.budget[1]:
+                self.step_s = step_s  # a finer mesh starts here
+                return _FeRun(fine, e_time, e_strain, 0.5 * step_s, self)
+            if 0.25 * step_s < FIXED_MIN_STEP_S:
+                raise _TimeErrorTooLarge(
+                    f"{e_time:.2g} (strains {e_strain:.2g}) from {step_s:g} to {0.5 * step_s:g} s"
+                )
+            step_s *= 0.5
+            coarse = fine
 
 
 def _tension_lag(drive: Drive, t_s: np.ndarray, a1: float) -> float:
@@ -180,7 +382,9 @@ def simulate_auto(
         or ``"fe-corot n_elements=4"``), ``settings["auto_error_estimate"]`` (the estimate,
         relative), ``settings["auto_reason"]`` (one sentence) and
         ``settings["auto_parts"]`` (the parts), ``settings["auto_station_error_estimate"]``
-        and ``settings["auto_strain_error_estimate"]`` (see the module docstring).
+        and ``settings["auto_strain_error_estimate"]``, ``settings["auto_time_integration"]``
+        (the FE's integrator, fixed step or adaptive, and how its time error is estimated;
+        see the module docstring).
         ``wall_time_s`` includes the trial runs that made the choice.
     """
     t_tol = float(tol)
@@ -232,6 +436,7 @@ def simulate_auto(
     # the strains carry the same model errors, relative to each gauge's amplitude
     strain_estimate = e_nl + e_kv + e_strain_trunc + e_time
     parts = {"nonlinear": e_nl, "tension_lag": e_kv, "truncation": e_trunc, "time": e_time}
+    time_settings: dict[str, Any] = {"method": "modal, adaptive", "estimate": "rtol"}
     if modal is not None and estimate <= t_tol and strain_estimate <= s_tol:
         result = modal
         choice = f"modal n_modes={n + 1}"
@@ -247,28 +452,28 @@ def simulate_auto(
         rtol_fe = max(min((1.0 - FE_SHARE) * t_tol / time_per_rtol, FE_RTOL_MAX), 1e-11)
         if np.size(gauge_positions_m):
             rtol_fe = min(rtol_fe, STRAIN_RTOL_PER_TOL * s_tol)
-        e_fe_time = time_per_rtol * rtol_fe
-        # the strains: curvature recovered from the nodes, its error estimated by the
-        # change from n to n + 1 elements (the n + 1 run is the one returned)
         t_all = np.asarray(t_eval_s, dtype=float)
         head = t_all <= t_all[0] + STRAIN_CHECK_S
-        strain_estimate = 0.0
         gauged = bool(np.size(gauge_positions_m))
-        result = simulate_fe(
-            beam, drive, t_all[head] if gauged else t_all, n_elements=ne, rtol=rtol_fe,
-            atol=rtol_fe, method="radau5", curvature="recovered", **common,
-        )  # fmt: skip
+        budget = ((1.0 - FE_SHARE) * t_tol, (1.0 - FE_SHARE) * s_tol)
+        time_per_run = time_per_rtol * rtol_fe
+        runner = _FeRunner(beam, drive, common, rtol_fe, time_per_run, budget)
+        runner.step_s = _fixed_step(beam, drive, a0, a1, rtol_fe)
+        # the first run: the coarse mesh of the strain check (over its head) or the result
+        fe_run = runner.single(ne, t_all[head]) if gauged else runner.run(ne, t_all)
+        # the strains: curvature recovered from the nodes, its error estimated by the
+        # change from n to n + 1 elements (the n + 1 run is the one returned)
+        strain_estimate = 0.0
         while gauged:
-            coarse = result
+            coarse = fe_run.result
             ne += 1
-            result = simulate_fe(
-                beam, drive, t_all, n_elements=ne, rtol=rtol_fe, atol=rtol_fe,
-                method="radau5", curvature="recovered", **common,
-            )  # fmt: skip
-            strain_estimate = _strain_change(coarse, result, int(np.count_nonzero(head)))
-            strain_estimate += e_fe_time
+            fe_run = fe_run.again(ne, t_all)
+            strain_estimate = _strain_change(coarse, fe_run.result, int(np.count_nonzero(head)))
+            strain_estimate += fe_run.strain_time_error
             if strain_estimate <= s_tol or ne >= MAX_RECOVERY_ELEMENTS:
                 break
+        result = fe_run.result
+        e_fe_time = fe_run.time_error
         e_fe = c_fe * ne**-4.0
         parts = {"discretisation": e_fe, "time": e_fe_time}
         modal_estimate = estimate
@@ -279,8 +484,9 @@ def simulate_auto(
             f"length = {delta / beam.length_m:.3g}: geometric nonlinearity ~{e_nl:.2g}, "
             f"Kelvin-Voigt tension lag ~{e_kv:.2g}); exact FE with {ne} elements, "
             f"curvature recovered from the nodes (strains ~{strain_estimate:.2g} RMS, the "
-            f"change from {ne - 1} elements)"
+            f"change from {ne - 1} elements); {fe_run.describe()}"
         )
+        time_settings = fe_run.settings()
     wall = time.perf_counter() - t0
     logger.info("auto: %s (estimate %.3g): %s", choice, estimate, reason)
     settings = dict(result.settings)
@@ -296,6 +502,7 @@ def simulate_auto(
             "auto_station_error_estimate": float(estimate),
             "auto_strain_error_estimate": float(strain_estimate),
             "auto_strain_tol": s_tol,
+            "auto_time_integration": time_settings,
             "solve_wall_time_s": result.wall_time_s,
         }
     )

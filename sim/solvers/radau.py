@@ -80,6 +80,9 @@ NEWTON_KAPPA = 0.03
 #: (at 0.5 a Newton iteration still gains a bit per iteration; slower costs more iterations
 #: than a Jacobian)
 JAC_REFRESH_RATE = 0.5
+#: a fixed step that Newton does not take (a start from rest with the hub accelerating:
+#: the first stages are far from the predicted ones) is halved, down to this share of it
+FIXED_SPLIT_MIN = 1.0 / 64.0
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 
@@ -176,7 +179,11 @@ def radau5(
     t_eval_s : (T,) strictly increasing output times; the integration starts at the first.
     y0 : (n,) state at ``t_eval_s[0]``.
     rtol, atol : local error tolerances (RMS norm of error / (atol + rtol |y|)).
-    first_step_s : first trial step (default: 1/100 of the first output interval or less).
+    first_step_s : first trial step (default: 1/100 of the first output interval or less);
+        with a ``fixed_step_s``, the first fixed step is taken in parts from this one, each
+        twice the last (a start from rest with the hub accelerating has a layer of the
+        fast modes that the dense output of a whole first step would carry to the output
+        times inside it, the same for every step size).
     jac_stages : Jacobians at several points, (k,), (k, n) -> (k, n, n). If given, Newton
         works on the 3n collocation system with each stage's own Jacobian, taken at the
         predicted stages and re-evaluated at the iterate when convergence is slow;
@@ -187,8 +194,12 @@ def radau5(
     fixed_step_s : if given, every step is this long (the last one shortened to end at
         ``t_eval_s[-1]``) and the step-size controller is off: no error estimate, no
         rejection, so ``rtol`` and ``atol`` only scale Newton's stopping test. For
-        convergence studies (the order of the method shows at the step ends); excludes
-        ``first_step_s``; a Newton iteration that fails to converge raises.
+        convergence studies (the order of the method shows at the step ends) and for
+        :mod:`sim.models.model_choice`, which measures the error by halving the step. A
+        step whose Newton iteration does not converge is tried again from the step start's
+        state (the extrapolated stages can be far off after a fast start), then taken in
+        halves (the parts up to twice the last, back onto the fixed steps at its end),
+        down to :data:`FIXED_SPLIT_MIN` of it; then it raises.
     second_order : the state is ``y = [d, v]`` (two halves) with ``d' = v`` exactly (the
         first half of ``f`` is the second half of ``y``): with the stage Jacobians,
         Newton then solves for the rate increments alone, 3n/2 unknowns, the displacement
@@ -233,9 +244,12 @@ def radau5(
             raise SimInputError(
                 "fixed_step_s", f"must be a positive finite number, got {fixed_step_s!r}"
             )
-        if first_step_s is not None:
-            raise SimInputError("first_step_s", "must be None with a fixed_step_s")
-        first_step_s = fixed_step_s
+        if first_step_s is not None and not (
+            math.isfinite(first_step_s) and 0.0 < first_step_s <= fixed_step_s
+        ):
+            raise SimInputError(
+                "first_step_s", f"must be in (0, fixed_step_s], got {first_step_s!r}"
+            )
     t_out = np.asarray(t_eval_s, dtype=float)
     t_list = t_out.tolist()  # the same floats, for bisect (cheaper per call)
     y = np.array(y0, dtype=float)
@@ -254,6 +268,9 @@ def radau5(
     # tolerance (Hairer and Wanner's kappa; their RADAU5's FNEWT is 0.03 at rtol >= 1e-3)
     newton_tol = max(10 * np.finfo(float).eps / rtol, NEWTON_KAPPA)
     span = t_end - t
+    ramp_s = first_step_s if fixed else None  # the first fixed step's first part
+    if fixed_step_s is not None:
+        first_step_s = fixed_step_s
     h = first_step_s if first_step_s is not None else min(1e-3, 0.01 * (t_out[1] - t_out[0]))
     h = min(max(h, 1e-12 * span), span)
     h_old: float | None = None
@@ -267,6 +284,12 @@ def radau5(
     # Hairer's FACCON: the last contraction's rate / (1 - rate), which lets Newton stop
     # after one iteration when the predicted stages are already within its tolerance
     faccon = 1.0
+    # a fixed step that Newton cannot take is taken in halves (see ``fixed_step_s``):
+    # ``t_goal`` is where the fixed step would have ended, ``h_fixed`` its length
+    h_fixed = h
+    t_goal: float | None = None
+    if ramp_s is not None and ramp_s < h_fixed:
+        t_goal, h = t + h_fixed, ramp_s  # the first step in parts, each twice the last
     while k_out < t_out.size:
         if stats.n_steps >= max_steps:
             raise IntegrationError("radau5", t, f"more than {max_steps} steps")
@@ -276,11 +299,15 @@ def radau5(
             if not np.all(np.isfinite(jmat)):
                 raise IntegrationError("radau5", t, "the Jacobian is not finite")
         rejected = False
+        zero_start = False
         while True:
             min_step = 10.0 * (math.nextafter(t, math.inf) - t)
             if h < min_step:
                 raise IntegrationError("radau5", t, f"step size {h:.3g} s underflows")
             t_new = t + h
+            if t_goal is not None and (t_new >= t_goal or t_goal - t_new < 1e-9 * h):
+                t_new = t_goal  # the split step's last part ends where the step would
+                h = t_new - t
             if t_new >= t_end or t_end - t_new < 1e-9 * h:
                 t_new = t_end
                 h = t_new - t
@@ -288,7 +315,7 @@ def radau5(
                 lu_r = lu_factor(MU_REAL / h * eye - jmat, check_finite=False)
                 lu_c = lu_factor(MU_COMPLEX / h * eye - jmat, check_finite=False)
                 stats.n_lu += 2
-            if q_prev is None:
+            if q_prev is None or zero_start:
                 z = np.zeros((tab.s, n))
             else:
                 # extrapolate the last collocation polynomial to the new stages
@@ -312,8 +339,19 @@ def radau5(
                     stats.n_lu += 1
             if not converged:
                 if fixed:
-                    problem = f"Newton does not converge at the fixed step {h:.3g} s"
-                    raise IntegrationError("radau5", t, problem)
+                    stats.n_newton_failed += 1
+                    if not zero_start and q_prev is not None:
+                        zero_start = True  # the extrapolated stages, then the step start's
+                        continue
+                    if h <= h_fixed * FIXED_SPLIT_MIN:
+                        problem = f"Newton does not converge at the fixed step {h:.3g} s"
+                        raise IntegrationError("radau5", t, problem)
+                    if t_goal is None:
+                        t_goal = min(t + h_fixed, t_end)
+                    h *= 0.5
+                    zero_start = False
+                    stats.n_rejected += 1
+                    continue
                 h *= 0.5
                 rejected = True
                 stats.n_rejected += 1
@@ -369,7 +407,12 @@ def radau5(
         h_old, err_old = h, err
         t, y = t_new, y_new
         stats.n_steps += 1
-        h = h * factor
+        if t_goal is None:
+            h = h * factor
+        elif t_new == t_goal:  # a split step done: back on the fixed steps
+            t_goal, h = None, h_fixed
+        else:  # the rest of the split step, in steps up to twice the last
+            h = min(2.0 * h, t_goal - t_new)
     if not np.all(np.isfinite(out)):
         raise IntegrationError("radau5", t_end, "non-finite states")
     return out, stats, time.perf_counter() - start

@@ -380,8 +380,11 @@ def test_fixed_step_radau5_converges_at_fifth_order(
         simulate_fe(rig_beam, drive, t, fixed_step_s=0.01)
     with pytest.raises(SimInputError, match="fixed_step_s must be a positive"):
         simulate_fe(rig_beam, drive, t, fixed_step_s=-0.01, method="radau5")
-    with pytest.raises(IntegrationError, match="Newton does not converge at the fixed step"):
-        simulate_fe(rig_beam, drive, t, fixed_step_s=0.1, **kw)
+    # Newton does not take the whole 0.1 s steps (it raised here before): they are taken in
+    # parts, and the answer stays a valid one (measured 4.0e-3 of the tip in 26 steps)
+    split = simulate_fe(rig_beam, drive, t, fixed_step_s=0.1, **kw)
+    assert split.settings["n_steps"] > round(1.2 / 0.1)
+    assert np.max(np.abs(split.tip_lateral_m - ref.tip_lateral_m)) / amp < 1e-2
 
 
 def test_more_radau_stages_cut_the_time_error_at_the_same_fixed_step(

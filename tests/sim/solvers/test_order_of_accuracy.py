@@ -130,8 +130,12 @@ def test_fixed_step_is_validated_and_a_newton_failure_raises() -> None:
     t = np.array([0.0, 1.0])
     with pytest.raises(SimInputError, match="fixed_step_s"):
         radau5(_rhs_stages, _jac, t, X0, rtol=1e-6, atol=1e-6, fixed_step_s=0.0)
-    with pytest.raises(SimInputError, match="first_step_s"):
-        radau5(_rhs_stages, _jac, t, X0, rtol=1e-6, atol=1e-6, fixed_step_s=0.1, first_step_s=0.1)
+    for first in (0.0, 0.2, math.nan):  # the first step's first part: in (0, fixed step]
+        with pytest.raises(SimInputError, match="first_step_s"):
+            radau5(
+                _rhs_stages, _jac, t, X0, rtol=1e-6, atol=1e-6, fixed_step_s=0.1,
+                first_step_s=first,
+            )  # fmt: skip
     # more stages: only at a fixed step (the error estimate is the 3-stage method's) and
     # with the stage Jacobians; 3, 4 or 5 of them
     for kwargs in ({}, {"fixed_step_s": 0.1, "jac_stages": None}):
@@ -146,7 +150,31 @@ def test_fixed_step_is_validated_and_a_newton_failure_raises() -> None:
     def poisoned(ts: np.ndarray, ys: np.ndarray) -> np.ndarray:
         return np.where(ts[:, None] < 0.45, _rhs_stages(ts, ys), np.nan)
 
-    # an adaptive run would halve the step until it underflows; a fixed one cannot, and
-    # says which step failed (the one from 0.4 s, whose stages reach past 0.45 s)
-    with pytest.raises(IntegrationError, match=r"t = 0\.4 s: Newton does not converge"):
+    # an adaptive run would halve the step until it underflows; a fixed one splits the
+    # step down to 1/64 of it, then says where and at which part it failed (the parts
+    # close in on 0.45 s, the last one's stages reach past it)
+    with pytest.raises(IntegrationError, match=r"Newton does not converge") as failed:
         radau5(poisoned, _jac, t, X0, rtol=1e-6, atol=1e-6, fixed_step_s=0.1)
+    message = str(failed.value)
+    assert "fixed step 0.00156 s" in message
+    t_fail = float(message.split("t = ")[1].split(" s")[0])
+    assert 0.45 - 0.1 / 32 <= t_fail < 0.45
+
+
+def test_a_fixed_step_starts_in_parts_and_stays_on_its_grid() -> None:
+    """``first_step_s`` at a fixed step: the first step in parts from it, each twice the
+    last (0.1 / 8: 1/8, 1/8, 1/4, 1/2 of it), then the fixed steps, each on the grid."""
+    t = np.linspace(0.0, T_END, 21)
+    whole, stats, _ = radau5(
+        _rhs_stages, _jac, t, X0, rtol=1e-10, atol=1e-10, fixed_step_s=0.1,
+        jac_stages=_jac_stages, stages=5,
+    )  # fmt: skip
+    parts, stats_parts, _ = radau5(
+        _rhs_stages, _jac, t, X0, rtol=1e-10, atol=1e-10, fixed_step_s=0.1,
+        jac_stages=_jac_stages, stages=5, first_step_s=0.0125,
+    )  # fmt: skip
+    assert stats_parts.n_steps == stats.n_steps + 3
+    exact = np.array([_exact(float(x)) for x in t])
+    # order 9 at the step ends: both far below the 3-stage method's error at this step
+    assert np.max(np.abs(whole - exact)) < 1e-8
+    assert np.max(np.abs(parts - exact)) < 1e-8
