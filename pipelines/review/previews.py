@@ -325,9 +325,21 @@ def _copy_blocks(dst: NDArray[np.uint8], src: NDArray[np.uint8], blocks: NDArray
     """Copy the 8 x 8 blocks set in ``blocks`` from ``src`` to ``dst`` (whole blocks
     both, in place)."""
     rows, cols = blocks.shape
+    if dst.flags.c_contiguous and src.flags.c_contiguous:
+        # a block's row of pixels is one 8-byte word: its 8 words taken by their flat
+        # index (a third of the time of indexing the blocks of 4-d views)
+        at = np.flatnonzero(blocks)
+        i, j = at // cols, at % cols
+        words = ((i * _BLOCK)[:, None] + _ROWS_OF_BLOCK) * cols + j[:, None]
+        to = dst.reshape(-1).view(np.uint64)
+        to[words] = src.reshape(-1).view(np.uint64)[words]
+        return
     i, j = np.nonzero(blocks)
-    to = dst.reshape(rows, _BLOCK, cols, _BLOCK).transpose(0, 2, 1, 3)
-    to[i, j] = src.reshape(rows, _BLOCK, cols, _BLOCK).transpose(0, 2, 1, 3)[i, j]
+    to4 = dst.reshape(rows, _BLOCK, cols, _BLOCK).transpose(0, 2, 1, 3)
+    to4[i, j] = src.reshape(rows, _BLOCK, cols, _BLOCK).transpose(0, 2, 1, 3)[i, j]
+
+
+_ROWS_OF_BLOCK = np.arange(_BLOCK, dtype=np.intp)[None, :]
 
 
 def _respliced(
@@ -367,14 +379,7 @@ def _respliced(
     part = redo
     if redo.size % across:
         part = np.concatenate((redo, np.full(-redo.size % across, redo[-1], dtype=np.intp)))
-    # in 8-byte words (a segment's row is interval of them): a quarter as many to index
-    words = seg_w // 8
-    grid = canvas[: rows * _BLOCK].view(np.uint64)[:, : cols * _BLOCK // 8]
-    grid = grid.reshape(rows, _BLOCK, whole.per_row, words)
-    segs = grid[part // whole.per_row, :, part % whole.per_row]  # [segment, row, word]
-    stack = np.ascontiguousarray(
-        segs.reshape(-1, across, _BLOCK, words).transpose(0, 2, 1, 3).reshape(-1, across * words)
-    ).view(np.uint8)
+    stack = _stacked(canvas, part, across, rows, whole.per_row, seg_w // 8)
     new = jpeg_layout(encode(stack, "jpeg", QUALITY, restart_interval_mcu=whole.interval))
     if new is None or new.starts.size != part.size:
         return None
@@ -385,3 +390,30 @@ def _respliced(
     # the changed segments' bytes replaced, everything between them (the unchanged
     # segments and every restart marker, whose numbers stay) kept as it was
     return replaced_segments(whole, redo, new)
+
+
+def _stacked(
+    canvas: NDArray[np.uint8],
+    part: NDArray[np.intp],
+    across: int,
+    rows: int,
+    per_row: int,
+    words: int,
+) -> NDArray[np.uint8]:
+    """The segments ``part`` (raster indices, ``per_row`` to a row of ``rows``; one 8-px
+    block row tall, ``words`` 8-byte words wide) of ``canvas`` side by side, ``across``
+    to a row (``part.size`` a multiple), in 8-byte words: a quarter as many to index."""
+    grid = canvas[: rows * _BLOCK].view(np.uint64)[:, : per_row * words]
+    g = part.size // across
+    if grid.flags.c_contiguous:
+        # each segment's 8 rows by their flat index, in the stack's order, taken at once
+        # (one pass: a third of the time of gathering [segment, row, word] and then
+        # transposing it into rows)
+        first = part // per_row * (_BLOCK * per_row) + part % per_row  # its top row
+        at = first.reshape(g, 1, across) + (_ROWS_OF_BLOCK * per_row).reshape(1, _BLOCK, 1)
+        rows_of = grid.reshape(rows * _BLOCK * per_row, words)
+        return np.take(rows_of, at.reshape(-1), axis=0).reshape(g * _BLOCK, -1).view(np.uint8)
+    segs = grid.reshape(rows, _BLOCK, per_row, words)[part // per_row, :, part % per_row]
+    return np.ascontiguousarray(  # [segment, row, word] to rows of ``across`` segments
+        segs.reshape(-1, across, _BLOCK, words).transpose(0, 2, 1, 3).reshape(-1, across * words)
+    ).view(np.uint8)
