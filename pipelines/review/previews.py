@@ -360,7 +360,8 @@ def _copy_blocks(dst: NDArray[np.uint8], src: NDArray[np.uint8], blocks: NDArray
     """Copy the 8 x 8 blocks set in ``blocks`` from ``src`` to ``dst`` (whole blocks
     both, in place)."""
     rows, cols = blocks.shape
-    if dst.flags.c_contiguous and src.flags.c_contiguous:
+    whole = (rows * _BLOCK, cols * _BLOCK)
+    if dst.shape == src.shape == whole and dst.flags.c_contiguous and src.flags.c_contiguous:
         # a block's row of pixels is one 8-byte word: its 8 words taken by their flat
         # index (a third of the time of indexing the blocks of 4-d views)
         at = np.flatnonzero(blocks)
