@@ -299,3 +299,82 @@ def test_the_region_spliced_into_the_whole_frame_is_the_whole_frame_encoded(
     b = [whole.show(d, "jpeg", m) for d, m in zip(frames, measured, strict=True)]
     assert whole.spliced_frames == 0 and whole.region_frames == len(frames) - 1
     assert a == b
+
+
+def test_the_region_drawn_in_its_box_is_the_region_drawn_whole(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # the lines are drawn in the box that holds them alone: the same blocks as drawn in
+    # the whole mask, for lines inside, across the edges, far outside, short and long,
+    # thin and thick
+    import pipelines.review.previews as previews
+
+    rng = np.random.default_rng(11)
+    cases = []
+    for k in range(300):
+        w, h = int(rng.integers(200, 1400)), int(rng.integers(200, 1000))
+        block_px = int(rng.choice([8, 16, 32]))
+        spread = [1.0, 1.6, 4.0, 40.0][k % 4]  # where the hub is, in frame sizes
+        start = np.array([w, h]) * (rng.random(2) * spread - (spread - 1) / 2)
+        angle = rng.random() * 2 * math.pi
+        along = np.array([math.cos(angle), math.sin(angle)])
+        s = np.linspace(0.0, rng.random() * 1.2 * max(w, h), int(rng.choice([2, 3, 40])))
+        line = start + s[:, None] * along + rng.normal(0.0, 3.0, (s.size, 2))
+        px_m = 10 ** rng.uniform(2, 4)
+        m = FrameMeasurement(
+            ok=True,
+            hub_line_px=np.vstack([start - 80.0 * along, start]),
+            centreline_px=line,
+            centreline_plane_m=line / px_m,
+            hub_width_m=rng.random() * 60.0 / px_m,
+            beam_width_m=float(rng.choice([rng.random() * 30.0, 3000.0, math.nan])) / px_m,
+        )
+        cases.append((m, (math.ceil(h / block_px), math.ceil(w / block_px)), block_px))
+    boxed = [region_blocks(m, shape, block_px) for m, shape, block_px in cases]
+    monkeypatch.setattr(previews, "_drawn_box", lambda lines, h, w, k: (0, h, 0, w))
+    whole = [region_blocks(m, shape, block_px) for m, shape, block_px in cases]
+    assert any(b is not None and b.any() for b in boxed)
+    assert any(b is not None and not b.any() for b in boxed)  # some wholly outside
+    for b, a in zip(boxed, whole, strict=True):
+        assert a is not None and b is not None and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("extra_words", [0, 3])
+def test_segments_are_stacked_side_by_side_in_order(extra_words: int) -> None:
+    # the segments to encode again, ``across`` to a row in the order given, from a
+    # canvas as wide as its segments or wider
+    from pipelines.review.previews import _stacked
+
+    rows, per_row, words, across = 7, 5, 2, 3
+    rng = np.random.default_rng(5)
+    canvas = rng.integers(0, 256, (rows * 8, (per_row * words + extra_words) * 8), np.uint8)
+    part = np.array([0, 3, 4, 9, 17, 18, 30, 34, 34], np.intp)
+    got = _stacked(canvas, part, across, rows, per_row, words)
+    seg_w = words * 8
+    for n, s in enumerate(part.tolist()):
+        r, c = divmod(s, per_row)
+        want = canvas[r * 8 : r * 8 + 8, c * seg_w : (c + 1) * seg_w]
+        g, a = divmod(n, across)
+        assert np.array_equal(got[g * 8 : g * 8 + 8, a * seg_w : (a + 1) * seg_w], want)
+    assert got.shape == (part.size // across * 8, across * seg_w) and got.flags.c_contiguous
+
+
+def test_blocks_are_copied_whole_and_alone() -> None:
+    from pipelines.review.previews import _copy_blocks
+
+    rng = np.random.default_rng(6)
+    src = rng.integers(0, 256, (6 * 8, 9 * 8), np.uint8)
+    for contiguous in (True, False):
+        dst = rng.integers(0, 256, src.shape, np.uint8)
+        before = dst.copy()
+        blocks = rng.random((6, 9)) < 0.3
+        if contiguous:
+            _copy_blocks(dst, src, blocks)
+        else:  # the 4-d indexing, for arrays that are views
+            wide = np.zeros((dst.shape[0], dst.shape[1] + 8), np.uint8)
+            wide[:, :-8] = dst
+            _copy_blocks(wide[:, :-8], src, blocks)
+            dst = wide[:, :-8]
+        mask = np.repeat(np.repeat(blocks, 8, axis=0), 8, axis=1)
+        assert np.array_equal(dst[mask], src[mask])
+        assert np.array_equal(dst[~mask], before[~mask])
