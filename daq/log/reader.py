@@ -68,7 +68,7 @@ _OP_METADATA = 0x0C
 _OP_DATA_END = 0x0F
 _FOOTER_SIZE = 1 + 8 + 8 + 8 + 4  # opcode, length, summary start, offset start, CRC
 _DATA_END_SIZE = 1 + 8 + 4
-_CRC_BLOCK = 16 * 1024 * 1024
+_CRC_BLOCK = 256 * 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -201,12 +201,16 @@ def _check_footer(p: Path, f: IO[bytes], size: int) -> int:
 
 
 def _crc(f: IO[bytes], n: int, crc: int = 0) -> int:
+    """The CRC-32 of the next ``n`` bytes of ``f`` (fewer at its end), read into one
+    buffer small enough to stay in the CPU's cache while the CRC reads it back (fresh
+    16 MB blocks cost a fifth more for the data section)."""
+    buf = memoryview(bytearray(max(0, min(n, _CRC_BLOCK))))
     while n > 0:
-        block = f.read(min(n, _CRC_BLOCK))
-        if not block:
+        got = f.readinto(buf[: min(n, _CRC_BLOCK)])  # type: ignore[attr-defined]
+        if not got:
             break
-        crc = zlib.crc32(block, crc)
-        n -= len(block)
+        crc = zlib.crc32(buf[:got], crc)
+        n -= got
     return crc
 
 
