@@ -490,7 +490,7 @@ def read_run(
         sample_messages: list[Message] = []
         events: list[tuple[int, Event]] = []
         camera_info = None
-        failure: LogError | None = None
+        failure: Exception | None = None
         if want:
             # file order, sorted below: much faster than the reader's merge for 400 Hz
             messages = _messages(p, f, reader, want, start_ns, end_ns, ordered=False)
@@ -502,10 +502,10 @@ def read_run(
                         events.append((message.sequence, _decode_other(p, TOPIC_EVENTS, message)))
                     elif channel.topic == TOPIC_CAMERA_INFO:
                         camera_info = _decode_other(p, TOPIC_CAMERA_INFO, message)
-            except LogError as exc:
+            except Exception as exc:  # raised below, after the samples read before it
                 failure = exc
-    # a bad sample read before the failure is the first error, as when each was decoded
-    # as it came
+    # a bad sample read before the failure (a bad event, a damaged record, anything the
+    # reading raised) is the first error, as when each was decoded as it came
     values = _decode_samples(p, sample_messages)
     if failure is not None:
         raise failure

@@ -204,12 +204,14 @@ def _log(
     *,
     times: list[int] | None = None,
     events: dict[int, bytes] | None = None,
+    chunked: bool = True,
 ) -> None:
     """A log holding ``samples`` (sample k at log time k * PERIOD_NS unless ``times``
-    says), with ``events[k]`` written right after sample k, in one chunk."""
+    says), with ``events[k]`` written right after sample k, in one chunk (``chunked``)
+    or as messages of their own, read as a stream."""
     times = [k * PERIOD_NS for k in range(len(samples))] if times is None else times
     with open(path, "wb") as f:
-        w = Writer(f, chunk_size=1 << 22, compression=CompressionType.ZSTD)
+        w = Writer(f, chunk_size=1 << 22, compression=CompressionType.ZSTD, use_chunking=chunked)
         w.start(profile="beambench", library="test")
         sid = w.register_schema("beambench.DaqSample", "jsonschema", b'{"type":"object"}')
         samples_id = w.register_channel("/daq/samples", "json", sid)
@@ -341,8 +343,9 @@ def test_a_sample_whose_time_is_not_its_log_time_is_refused(tmp_path: Path) -> N
     )
 
 
+@pytest.mark.parametrize("chunked", [True, False])
 def test_the_first_bad_message_in_the_file_is_named_whatever_its_topic(
-    tmp_path: Path,
+    tmp_path: Path, chunked: bool
 ) -> None:
     data = _written(60)
     bad_sample = data[40][:-3]
@@ -350,12 +353,12 @@ def test_the_first_bad_message_in_the_file_is_named_whatever_its_topic(
     bad_event = _event(0, "")  # an event needs a name
     path = tmp_path / "run.mcap"
     # the event first, then the sample
-    _log(path, data, events={5: _event(5, "start"), 20: bad_event})
+    _log(path, data, events={5: _event(5, "start"), 20: bad_event}, chunked=chunked)
     assert _error(path) == (
         f"{path}: bad /events message (sequence 20, log time {20 * PERIOD_NS} ns): an event "
         "needs a name"
     )
     # the sample first, then the event
     path.unlink()
-    _log(path, data, events={50: bad_event})
+    _log(path, data, events={50: bad_event}, chunked=chunked)
     assert _error(path) == _sample_error(path, 40, bad_sample)
