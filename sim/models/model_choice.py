@@ -540,6 +540,15 @@ def simulate_auto(
         time_settings = fe_run.settings()
     wall = time.perf_counter() - t0
     logger.info("auto: %s (estimate %.3g): %s", choice, estimate, reason)
+    if strain_estimate > s_tol:
+        # the mesh stopped at its cap: the strains are stated as they are, and said so
+        logger.warning(
+            "auto: the gauges' strains are estimated off by %.2g of their RMS, above their "
+            "tolerance %.2g, with the most elements auto uses (%d)",
+            strain_estimate,
+            s_tol,
+            MAX_RECOVERY_ELEMENTS,
+        )
     settings = dict(result.settings)
     settings.update(
         {

@@ -273,3 +273,35 @@ def test_every_station_and_gauge_within_its_estimate(name: str, tol: float) -> N
             assert station_error > s["auto_error_estimate"]
         if with_gauges:
             assert _strain_change(res, ref) <= s["auto_strain_error_estimate"]
+
+
+def test_strains_above_their_tolerance_at_the_cap_are_said(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # the undamped spin-up with a rectangle's surface: the recovered curvature's change
+    # stays above the gauges' tolerance up to the most elements auto uses (measured
+    # 3.1e-3 for 2e-3); the paper's scene, within it, gives no such line
+    from sim.models.model_choice import MAX_RECOVERY_ELEMENTS
+
+    up = spin_up_beam()
+    c = float(np.sqrt(3.0 * up.bending_stiffness_n_m2 / up.axial_stiffness_n))
+    beam = dataclasses.replace(up, surface_offset_m=c)
+    t = np.linspace(0.0, 10.0, 101)
+    with caplog.at_level("WARNING", logger="sim.models.model_choice"):
+        res = simulate_auto(
+            beam, SpinUpDrive(4.0), t, tol=1e-4, gauge_positions_m=(0.05, 2.0, 4.0, 6.0)
+        )
+    s = res.settings
+    assert s["auto_choice"] == f"fe-corot n_elements={MAX_RECOVERY_ELEMENTS}"
+    assert s["auto_strain_error_estimate"] > s["auto_strain_tol"]
+    said = [r for r in caplog.records if "above their tolerance" in r.getMessage()]
+    assert len(said) == 1 and said[0].levelname == "WARNING"
+    caplog.clear()
+    paper = BeamProperties.from_config(BeamConfig())
+    with caplog.at_level("WARNING", logger="sim.models.model_choice"):
+        res = simulate_auto(
+            paper, SinusoidDrive(0.7669, 4.970), np.linspace(0.0, 2.6, 261), tol=1e-4,
+            gauge_positions_m=_GAUGES, **_DAMPING,
+        )  # fmt: skip
+    assert res.settings["auto_strain_error_estimate"] <= res.settings["auto_strain_tol"]
+    assert not [r for r in caplog.records if "above their tolerance" in r.getMessage()]
