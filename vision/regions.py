@@ -13,7 +13,12 @@ the measurement reads (what it reads is found in 8 x 8 blocks, a segment being
    their chord, outward past the tip and inward over the hub), widened by the reach of
    the edge scans; how far the band runs behind the pivot comes from the previous
    frame's hub (the track), the whole beam length without one, and a previous frame
-   that was smeared (the track too) widens the band by the smeared scans' reach;
+   that was smeared (the track too) widens the band by the smeared scans' reach. With
+   the previous frame's geometry (the next frame of a run measured from its parts),
+   the band is instead the region the check asked of that frame (4.), turned about the
+   pivot as the chord through the crossings turned and widened by the motion between
+   frames, unless the crossings lie off that turned centre line (the beam bent
+   otherwise): ~0.07 Mpx less of a 3 Mpx frame of the bench's run;
 3. the measurement, on a full-size image whose other pixels are one gray level (the
    median of the circles: a constant holds no strip, so a part not decoded cannot look
    like beam or hub);
@@ -82,6 +87,17 @@ _OFF_CHORD_WIDTHS = 2.0
 #: beam's slope at its root against the chord: up to ~10 degrees on the fast set, under
 #: 5 on the others): the band there is a fan of three, the chord's and this either side.
 _HUB_FAN_RAD = math.radians(12.0)
+#: With a track of the last frame's geometry, the band is what the check asked of that
+#: frame, turned about the pivot as the chord through the crossings turned, and widened
+#: by this much (m): beyond the rotation, a bending beam's centre line, hub and tip
+#: moved up to 9 mm between frames of the bench's 60 s run (15 frames/s: none of its
+#: 900 frames regrew at 10 mm, 375 did at 5 mm); the rest the check finds and the
+#: reader decodes.
+_TRACK_MARGIN_M = 0.015
+#: The turned track is used only when the crossings lie this close to its centre line
+#: (m; up to 4 mm on that run): farther, the beam changed shape (or the frame is not the
+#: next of the same view) and the band is predicted from the crossings alone.
+_TRACK_GATE_M = 0.01
 
 
 @dataclass
@@ -92,7 +108,24 @@ class RegionStats:
     parts: int = 0
     whole: int = 0
     regrown: int = 0
+    #: frames whose band was predicted from the last frame's geometry (the track)
+    tracked: int = 0
     decoded_fraction: list[float] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class _Shape:
+    """The track's geometry: what the check asked of the last frame measured from its
+    parts (plane, m), and the direction of that frame's chord through its crossings."""
+
+    angle: float  # rad, of the chord from the inner crossing to the outer
+    line: NDArray[np.float64]  # (K, 2) the beam's centre line
+    back: NDArray[np.float64]  # the hub's back end and the clamp, on its axis
+    clamp: NDArray[np.float64]
+    tip: NDArray[np.float64]
+    hub_w: float  # the hub's search width
+    beam_w: float  # the beam's measured width (NaN: none)
+    smeared: bool
 
 
 class RegionReader:
@@ -121,6 +154,8 @@ class RegionReader:
         #: The track: how much farther than the edge scans the previous frame's smeared
         #: edges were read (m; 0 when it was not smeared).
         self.smear_m = 0.0
+        #: The track: the last frame's geometry, when it was measured from its parts.
+        self._shape: _Shape | None = None
         self.stats = RegionStats()
 
     # -- entry point ------------------------------------------------------------------
@@ -129,10 +164,11 @@ class RegionReader:
         ``ok=False`` with the decoder's reason, as a full decode does."""
         layout = jpeg_layout(data) if self.parts and self.measurer.method == "default" else None
         if layout is not None:
-            m = self._measure_parts(layout)
-            if m is not None:
+            got = self._measure_parts(layout)
+            if got is not None:
+                m, angle = got
                 self.stats.parts += 1
-                self._keep_track(m)
+                self._keep_track(m, angle)
                 return m
         self.stats.whole += 1
         try:
@@ -145,7 +181,7 @@ class RegionReader:
         return m
 
     # -- the parts --------------------------------------------------------------------
-    def _measure_parts(self, layout: JpegLayout) -> FrameMeasurement | None:
+    def _measure_parts(self, layout: JpegLayout) -> tuple[FrameMeasurement, float] | None:
         # the masks below are of 8 x 8 blocks (what the measurement reads is found to
         # the block); a segment is ``seg_cols`` of them across (and an MCU's block rows
         # down: one gray, two of a colour JPEG whose Y is sampled twice vertically)
@@ -182,7 +218,13 @@ class RegionReader:
             return None
         p1, p2, shown = found
         w0 = outward_width(shown, self.measurer.calibration.beam_width_m)
-        want = self._predicted(p1, p2, w0, shape)
+        d0 = p2 - p1
+        angle = math.atan2(float(d0[1]), float(d0[0]))
+        want = self._tracked(p1, p2, angle, w0, shape)
+        if want is None:
+            want = self._predicted(p1, p2, w0, shape)
+        else:
+            self.stats.tracked += 1
         for attempt in range(2):
             new = _missing_segments(want, done, seg_cols, seg_rows)
             if new.size:
@@ -201,7 +243,7 @@ class RegionReader:
             read = self._read(m, p1, p2, w0, shape)
             if _missing_segments(read, done, seg_cols, seg_rows).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
-                return m
+                return m, angle
             # Read beyond what was decoded: decode that, and the band's whole reach
             # behind the pivot (a hub cut short by what was not decoded reads farther
             # once it is decoded), and measure again.
@@ -244,17 +286,35 @@ class RegionReader:
         self.hub_back_m = None
         self.hub_w_m = math.nan
         self.smear_m = 0.0
+        self._shape = None
 
-    def _keep_track(self, m: FrameMeasurement) -> None:
+    def _keep_track(self, m: FrameMeasurement, angle: float | None = None) -> None:
+        """Keep what the next frame's band is predicted from; ``angle``: the chord's
+        direction, of a frame measured from its parts (None: no shape kept)."""
         if not m.ok:
             self.lose_track()
             return
-        self.smear_m = self._smear_reach_m() if self._smeared(m) else 0.0
-        back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]
+        smeared = self._smeared(m)
+        self.smear_m = self._smear_reach_m() if smeared else 0.0
+        ends = self.measurer.calibration.to_plane(m.hub_line_px)
+        back, clamp = ends[0], ends[1]
         hub_w = m.hub_search_width_m
         ok = np.all(np.isfinite(back)) and math.isfinite(hub_w)
         self.hub_back_m = float(np.hypot(*back)) if ok else None
         self.hub_w_m = float(hub_w) if ok else math.nan
+        self._shape = None
+        line = m.centreline_plane_m
+        if (
+            angle is not None
+            and ok
+            and np.all(np.isfinite(clamp))
+            and np.all(np.isfinite(m.tip_plane_m))
+            and len(line) >= 2
+            and np.all(np.isfinite(line))
+        ):
+            self._shape = _Shape(
+                angle, line, back, clamp, m.tip_plane_m, float(hub_w), m.beam_width_m, smeared
+            )
 
     # -- regions ----------------------------------------------------------------------
     def _ring_segments(self, layout: JpegLayout) -> NDArray[np.intp]:
@@ -277,6 +337,44 @@ class RegionReader:
             got.flags.writeable = False
             self._ring_segs[key] = got
         return got
+
+    def _tracked(
+        self,
+        p1: NDArray[np.float64],
+        p2: NDArray[np.float64],
+        angle: float,
+        w: float,
+        shape: tuple[int, int],
+    ) -> NDArray[np.bool_] | None:
+        """The blocks the measurement should read, from the track: the region the check
+        asked of the last frame (:meth:`_read`'s tubes), its geometry turned about the
+        pivot by the turn of the chord through the crossings, about this frame's
+        crossings, every tube widened by :data:`_TRACK_MARGIN_M`. None without a track,
+        or when the crossings lie off the turned centre line by more than
+        :data:`_TRACK_GATE_M` (the beam bent otherwise, or jumped)."""
+        track = self._shape
+        if track is None:
+            return None
+        turn = angle - track.angle
+        c, s = math.cos(turn), math.sin(turn)
+        rot = np.array([[c, s], [-s, c]])  # row vectors: p @ rot turns p by ``turn``
+        line = track.line @ rot
+        if _off_line(np.array([p1, p2]), line) > _TRACK_GATE_M:
+            return None
+        tubes = self._read_tubes(
+            p1,
+            p2,
+            w,
+            track.back @ rot,
+            track.clamp @ rot,
+            track.tip @ rot,
+            line,
+            track.hub_w,
+            track.beam_w,
+            track.smeared,
+            _TRACK_MARGIN_M,
+        )
+        return self._tubes(shape, tubes)
 
     def _predicted(
         self,
@@ -349,6 +447,40 @@ class RegionReader:
         each strip ended), the edge scans about the beam's and the hub's centre lines,
         the clamp's and the back face's searches (a hub width either side of each) and
         the tip's (its end face, up to four beam widths on)."""
+        back, clamp = self.measurer.calibration.to_plane(m.hub_line_px)
+        tubes = self._read_tubes(
+            p1,
+            p2,
+            w,
+            back,
+            clamp,
+            m.tip_plane_m,
+            m.centreline_plane_m,
+            m.hub_search_width_m,
+            m.beam_width_m,
+            self._smeared(m),
+            0.0,
+        )
+        return self._tubes(shape, tubes)
+
+    def _read_tubes(
+        self,
+        p1: NDArray[np.float64],
+        p2: NDArray[np.float64],
+        w: float,
+        back: NDArray[np.float64],
+        clamp: NDArray[np.float64],
+        tip: NDArray[np.float64],
+        line: NDArray[np.float64],
+        hub_w: float,
+        beam_w: float,
+        smeared: bool,
+        grow: float,
+    ) -> list[tuple[NDArray[np.float64], float]]:
+        """:meth:`_read`'s tubes of a measurement's geometry (plane, m: the hub's back end
+        and clamp, the tip, the centre line, the hub's search width, the beam's measured
+        width, whether it was smeared), each ``grow`` wider and the bands that much
+        longer."""
         cal = self.measurer.calibration
         px_m = self.measurer.px_m
         # ``w``: the outward band's width (the strip's on the circles, or the hint); the
@@ -356,37 +488,35 @@ class RegionReader:
         # where it is not the calibration's (vision.locate.working_width).
         hint = cal.beam_width_m
         wb = w
-        if math.isfinite(m.beam_width_m):
-            wb = working_width(m.beam_width_m, hint)
+        if math.isfinite(beam_w):
+            wb = working_width(beam_w, hint)
             wb = max(w, wb if wb == hint else 1.15 * wb)
         reach = self._reach_m(wb)
         d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
-        back, clamp = cal.to_plane(m.hub_line_px)
-        tip = m.tip_plane_m
-        line = m.centreline_plane_m
-        hub_w = m.hub_search_width_m
         hub_w = hub_w if math.isfinite(hub_w) else 3 * wb
-        half = follow_half_width(w) + 2 * px_m
-        half_in = follow_half_width(wb) + 2 * px_m
+        half = follow_half_width(w) + 2 * px_m + grow
+        half_in = follow_half_width(wb) + 2 * px_m + grow
         out_end = float((tip - p2) @ d0) + 2 * max(_STEP_OUT_WIDTHS * w, 4 * px_m) + 4 * wb
         in_end = float((p1 - back) @ d0) + 2 * max(_STEP_IN_WIDTHS * wb, 4 * px_m)
+        out_end, in_end = out_end + grow, in_end + grow
         tubes = [
             (np.array([p2, p2 + max(out_end, 0.0) * d0]), half),
             (np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in),
         ]
         beam_r = 0.75 * wb + reach
-        if self._smeared(m):
+        if smeared:
             beam_r += self._smear_reach_m()
-        tubes.append((line, beam_r))
+        tubes.append((line, beam_r + grow))
         # the tip's searches: single lines along the tangent, up to 4 widths on
         pad = 6 * self.measurer.px_m
-        tubes.append((np.vstack([tip, tip + 4.5 * wb * _unit(tip - line[-2])]), 0.5 * wb + pad))
+        tip_line = np.vstack([tip, tip + 4.5 * wb * _unit(tip - line[-2])])
+        tubes.append((tip_line, 0.5 * wb + pad + grow))
         e = _unit(clamp - back)
         hub_line = np.array([back - 0.5 * hub_w * e, clamp + 0.5 * hub_w * e])
-        tubes.append((hub_line, 0.75 * hub_w + reach))
+        tubes.append((hub_line, 0.75 * hub_w + reach + grow))
         faces = np.array([back - hub_w * e, clamp + hub_w * e])
-        tubes.append((faces, 0.5 * hub_w + pad))
-        return self._tubes(shape, tubes)
+        tubes.append((faces, 0.5 * hub_w + pad + grow))
+        return tubes
 
     def _smeared(self, m: FrameMeasurement) -> bool:
         return math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px
@@ -589,6 +719,27 @@ def _tube_pixels(
             widest = side if j == first[i] else max(widest, side)
         thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
     return blk, thick
+
+
+@kernel
+def _off_line(pts: NDArray[np.float64], line: NDArray[np.float64]) -> float:
+    """The largest distance of points ``pts`` (N, 2) from a polyline ``line`` (K, 2),
+    K >= 2 (a segment of no length: its end point)."""
+    worst = 0.0
+    for i in range(pts.shape[0]):
+        px, py = pts[i, 0], pts[i, 1]
+        near = math.inf
+        for k in range(line.shape[0] - 1):
+            ax, ay = line[k, 0], line[k, 1]
+            dx, dy = line[k + 1, 0] - ax, line[k + 1, 1] - ay
+            rx, ry = px - ax, py - ay
+            dd = dx * dx + dy * dy
+            t = (rx * dx + ry * dy) / dd if dd > 0 else 0.0
+            t = min(max(t, 0.0), 1.0)
+            gx, gy = rx - t * dx, ry - t * dy
+            near = min(near, gx * gx + gy * gy)
+        worst = max(worst, math.sqrt(near))
+    return worst
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:

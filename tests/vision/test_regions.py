@@ -457,3 +457,80 @@ def test_a_colour_frame_damaged_in_a_segment_is_refused_or_measured_close(scene)
     frames, cal = scene
     data = _driver_jpeg(_colour(frames[0]), quality=92)
     assert _flipped_and_measured_close(data, Measurer(cal), 8, 25) > 5
+
+
+@pytest.fixture(scope="module")
+def swing(vt):
+    """A run's frames (the scene's camera): the beam straight at 300 deg, turned 2 deg
+    on, then the same hub angle with the beam bent (its tip ~50 mm off the turned
+    straight beam, its crossings of the search circles a few mm), and one bent hard."""
+    spec = vt.make_spec(
+        camera=CAMERA,
+        pose=POSE,
+        noise_dn=3.0,
+        seed=9,
+        hub_length_m=0.6,
+        hub_width_m=0.05,
+        background_dn=30.0,
+    )
+    rng = np.random.default_rng(5)
+    frames = []
+    for hub_deg, slope in ((300.0, 0.0), (302.0, 0.0), (302.0, 0.09), (300.0, 0.2)):
+        fr = render_frame(spec, [vt.bent(math.radians(hub_deg), slope)], rng=rng)
+        frames.append(encode(fr.image, "jpeg", 90))
+    return frames, vt.truth_calibration(fr.truth)
+
+
+def test_the_track_turned_with_the_chord_decodes_less_and_measures_the_same(swing) -> None:
+    """The next frame of a run, the beam turned: its band is the last frame's read region
+    turned with the chord (the track), smaller than the band from the crossings alone;
+    measured at once, as from the whole frame."""
+    frames, cal = swing
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    alone = RegionReader(measurer)
+    regrown = []
+    for data in frames[:2]:
+        _same(reader.measure(data), measurer.measure(decode(data)))
+        regrown.append(reader.stats.regrown)
+        alone.lose_track()
+        alone.measure(data)
+    # the first frame's hub reaches past the band decoded without a track: regrown
+    assert regrown == [1, 1]
+    assert (reader.stats.parts, reader.stats.tracked) == (2, 1)
+    assert alone.stats.tracked == 0
+    assert reader.stats.decoded_fraction[1] < 0.9 * alone.stats.decoded_fraction[1]
+
+
+def test_a_beam_bent_beyond_the_tracks_margin_is_regrown(swing) -> None:
+    """The beam bends between two frames more than the track's margin (its tip moves
+    ~50 mm, its crossings little): the band turned from the last frame misses the tip,
+    the check finds it, the rest is decoded and the frame measured again, as from the
+    whole frame."""
+    frames, cal = swing
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    regrown = []
+    for data in (frames[1], frames[2]):
+        _same(reader.measure(data), measurer.measure(decode(data)))
+        regrown.append(reader.stats.regrown)
+    assert regrown == [1, 2]  # the first: its long hub, untracked (as above)
+    assert (reader.stats.parts, reader.stats.tracked) == (2, 1)
+
+
+def test_a_beam_whose_shape_changed_is_not_tracked(swing) -> None:
+    """A straight beam, then one bent hard (tip slope 0.2 rad): its crossings lie 12 mm
+    off the last frame's centre line turned with the chord, so the band is predicted from
+    the crossings alone (not the track), and measured as from the whole frame;
+    lose_track forgets the shape."""
+    frames, cal = swing
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    for data in (frames[0], frames[3]):
+        got = reader.measure(data)
+        assert got.ok, got.reason
+        _same(got, measurer.measure(decode(data)))
+    assert (reader.stats.parts, reader.stats.tracked) == (2, 0)
+    assert reader._shape is not None
+    reader.lose_track()
+    assert reader._shape is None
