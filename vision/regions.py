@@ -25,7 +25,10 @@ the measurement reads (what it reads is found in 8 x 8 blocks, a segment being
 4. the check: the region the measurement read, from its result (the band to the hub's
    back end and past the tip, the edge scans about the hub and the beam, the tip's and
    the clamp's face searches), must lie in what was decoded; a miss decodes the rest of
-   that region and measures again, once.
+   that region and measures again, once. Outward of the crossings the rough location
+   reads cross-profiles a step (2.5 beam widths) apart, at places the crossings fix:
+   where the band was predicted from the track, the check takes those profiles' pixels
+   (a fifth or so of their band's segments on the bench's camera), not the band.
 
 A frame refused on its parts, a check missed twice, or crossings not found (a frame
 without a beam, a beam that jumped out of the previous frame's band) is decoded whole and
@@ -67,6 +70,7 @@ from vision.locate import (
 from vision.measure import Measurer
 
 _BLOCK_PX = 8
+_BLOCK_BITS = 3  # 2**3 = _BLOCK_PX
 #: Reach of the edge scans beyond a strip's half width (px): the scan's margin, the
 #: widest window and the slant of a scan line across the strip (up to sqrt 2), rounded up.
 _SCAN_REACH_PX = 40.0
@@ -221,6 +225,7 @@ class RegionReader:
         d0 = p2 - p1
         angle = math.atan2(float(d0[1]), float(d0[0]))
         want = self._tracked(p1, p2, angle, w0, shape)
+        tracked = want is not None
         if want is None:
             want = self._predicted(p1, p2, w0, shape)
         else:
@@ -240,7 +245,9 @@ class RegionReader:
             m = self.measurer.measure(image_of(layout, canvas), crossings_m=found)
             if not m.ok:
                 return None
-            read = self._read(m, p1, p2, w0, shape)
+            # (the outward profiles one by one where the band was predicted from the
+            # track; else the whole band they lie in, which that prediction covers)
+            read = self._read(m, p1, p2, w0, shape, profiles=tracked)
             if _missing_segments(read, done, seg_cols, seg_rows).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
                 return m, angle
@@ -374,7 +381,7 @@ class RegionReader:
             track.smeared,
             _TRACK_MARGIN_M,
         )
-        return self._tubes(shape, tubes)
+        return self._read_mask(p1, p2, w, *tubes, shape, profiles=True)
 
     def _predicted(
         self,
@@ -441,12 +448,14 @@ class RegionReader:
         p2: NDArray[np.float64],
         w: float,
         shape: tuple[int, int],
+        profiles: bool = True,
     ) -> NDArray[np.bool_]:
-        """The blocks a measurement read, from its result: the rough location's bands
-        (outward past the tip, inward past the hub's back end: two steps beyond where
-        each strip ended), the edge scans about the beam's and the hub's centre lines,
-        the clamp's and the back face's searches (a hub width either side of each) and
-        the tip's (its end face, up to four beam widths on)."""
+        """The blocks a measurement read, from its result: the rough location's
+        cross-profiles (outward past the tip, inward past the hub's back end: two steps
+        beyond where each strip ended; outward, each profile's samples, or without
+        ``profiles`` the band they lie in), the edge scans about the beam's and the
+        hub's centre lines, the clamp's and the back face's searches (a hub width either
+        side of each) and the tip's (its end face, up to four beam widths on)."""
         back, clamp = self.measurer.calibration.to_plane(m.hub_line_px)
         tubes = self._read_tubes(
             p1,
@@ -461,7 +470,42 @@ class RegionReader:
             self._smeared(m),
             0.0,
         )
-        return self._tubes(shape, tubes)
+        return self._read_mask(p1, p2, w, *tubes, shape, profiles=profiles)
+
+    def _read_mask(
+        self,
+        p1: NDArray[np.float64],
+        p2: NDArray[np.float64],
+        w: float,
+        tubes: list[tuple[NDArray[np.float64], float]],
+        out_len: float,
+        shape: tuple[int, int],
+        *,
+        profiles: bool,
+    ) -> NDArray[np.bool_]:
+        """The blocks of :meth:`_read_tubes`' tubes and of the outward cross-profiles
+        (:func:`vision.locate.locate`'s follow from the outer crossing ``p2`` along the
+        chord, a strip ``w`` wide: its steps, each profile's samples) out to ``out_len``
+        along the chord: each sample's bilinear pixels and a pixel more either way (the
+        same points, computed here in another order, may round to the next pixel).
+        Without ``profiles``, the band the profiles lie in instead (a tube, cheaper)."""
+        px_m = self.measurer.px_m
+        d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
+        if not profiles:
+            band = (np.array([p2, p2 + out_len * d0]), follow_half_width(w) + 2 * px_m)
+            return self._tubes(shape, [band, *tubes])
+        mask = self._tubes(shape, tubes)
+        step = max(_STEP_OUT_WIDTHS * w, 4 * px_m)
+        if out_len < step:
+            return mask
+        half = follow_half_width(w)
+        ts = np.arange(step, out_len + step / 2, step)
+        offs = np.arange(-half, half + 0.375 * px_m, 0.75 * px_m)
+        n = np.array([-d0[1], d0[0]])
+        pts = _profile_points(ts, p2, d0, offs * n[0], offs * n[1])
+        px = np.ascontiguousarray(self.measurer.calibration.to_px(pts), dtype=np.float64)
+        _mark_points(mask.view(np.uint8), px, _BLOCK_BITS)
+        return mask
 
     def _read_tubes(
         self,
@@ -476,11 +520,12 @@ class RegionReader:
         beam_w: float,
         smeared: bool,
         grow: float,
-    ) -> list[tuple[NDArray[np.float64], float]]:
+    ) -> tuple[list[tuple[NDArray[np.float64], float]], float]:
         """:meth:`_read`'s tubes of a measurement's geometry (plane, m: the hub's back end
         and clamp, the tip, the centre line, the hub's search width, the beam's measured
         width, whether it was smeared), each ``grow`` wider and the bands that much
-        longer."""
+        longer; and how far out along the chord from ``p2`` the outward cross-profiles
+        were read (:meth:`_read_mask`)."""
         cal = self.measurer.calibration
         px_m = self.measurer.px_m
         # ``w``: the outward band's width (the strip's on the circles, or the hint); the
@@ -494,15 +539,13 @@ class RegionReader:
         reach = self._reach_m(wb)
         d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
         hub_w = hub_w if math.isfinite(hub_w) else 3 * wb
-        half = follow_half_width(w) + 2 * px_m + grow
         half_in = follow_half_width(wb) + 2 * px_m + grow
         out_end = float((tip - p2) @ d0) + 2 * max(_STEP_OUT_WIDTHS * w, 4 * px_m) + 4 * wb
         in_end = float((p1 - back) @ d0) + 2 * max(_STEP_IN_WIDTHS * wb, 4 * px_m)
         out_end, in_end = out_end + grow, in_end + grow
-        tubes = [
-            (np.array([p2, p2 + max(out_end, 0.0) * d0]), half),
-            (np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in),
-        ]
+        # outward, the follow's cross-profiles alone (:meth:`_read_mask`): two steps
+        # past the strip's end at most (the last that found it, the one that did not)
+        tubes = [(np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in)]
         beam_r = 0.75 * wb + reach
         if smeared:
             beam_r += self._smear_reach_m()
@@ -516,7 +559,7 @@ class RegionReader:
         tubes.append((hub_line, 0.75 * hub_w + reach + grow))
         faces = np.array([back - hub_w * e, clamp + hub_w * e])
         tubes.append((faces, 0.5 * hub_w + pad + grow))
-        return tubes
+        return tubes, max(out_end, 0.0)
 
     def _smeared(self, m: FrameMeasurement) -> bool:
         return math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px
@@ -719,6 +762,55 @@ def _tube_pixels(
             widest = side if j == first[i] else max(widest, side)
         thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
     return blk, thick
+
+
+@kernel
+def _profile_points(
+    t: NDArray[np.float64],
+    start: NDArray[np.float64],
+    direction: NDArray[np.float64],
+    dx: NDArray[np.float64],
+    dy: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """The points of cross-profiles at ``start + t direction`` (K), offsets (dx, dy) (M)
+    across: (K * M, 2), as :func:`vision.locate._offset_grid` makes them."""
+    out = np.empty((t.size * dx.size, 2))
+    for k in range(t.size):
+        x = start[0] + t[k] * direction[0]
+        y = start[1] + t[k] * direction[1]
+        for j in range(dx.size):
+            out[k * dx.size + j, 0] = x + dx[j]
+            out[k * dx.size + j, 1] = y + dy[j]
+    return out
+
+
+@kernel
+def _mark_points(mask: NDArray[np.uint8], px: NDArray[np.float64], bits: int) -> None:
+    """Set the blocks of ``mask`` (``2**bits`` px a side) holding the pixels a bilinear
+    sample at each point ``px`` (x, y) reads, and a pixel more either way: columns
+    ``floor(x) - 1 .. floor(x) + 2``, rows likewise (points off the image: none of it)."""
+    rows, cols = mask.shape
+    side = 1 << bits
+    # shifted a block so that the pixels are non-negative where a point can read the
+    # image (x > -2): truncation is then the floor, a shift the division
+    xmax, ymax = float(cols * side + 1), float(rows * side + 1)
+    shift = float(side)
+    l0 = l1 = l2 = l3 = -1
+    for i in range(px.shape[0]):
+        x, y = px[i, 0], px[i, 1]
+        if not (x > -2.0 and y > -2.0 and x < xmax and y < ymax):
+            continue  # NaN, or off the image
+        ix, iy = int(x + shift), int(y + shift)
+        c0 = max(((ix - 1) >> bits) - 1, 0)
+        c1 = min(((ix + 2) >> bits) - 1, cols - 1)
+        r0 = max(((iy - 1) >> bits) - 1, 0)
+        r1 = min(((iy + 2) >> bits) - 1, rows - 1)
+        if r0 == l0 and r1 == l1 and c0 == l2 and c1 == l3:
+            continue  # the last point's blocks (a profile's are fractions of a pixel apart)
+        l0, l1, l2, l3 = r0, r1, c0, c1
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                mask[r, c] = 1
 
 
 @kernel
