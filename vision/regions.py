@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -117,8 +118,7 @@ class RegionStats:
     decoded_fraction: list[float] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
-class _Shape:
+class _Shape(NamedTuple):
     """The track's geometry: what the check asked of the last frame measured from its
     parts (plane, m), and the direction of that frame's chord through its crossings."""
 
@@ -310,17 +310,16 @@ class RegionReader:
         self.hub_back_m = float(np.hypot(*back)) if ok else None
         self.hub_w_m = float(hub_w) if ok else math.nan
         self._shape = None
-        line = m.centreline_plane_m
-        if (
-            angle is not None
-            and ok
-            and np.all(np.isfinite(clamp))
-            and np.all(np.isfinite(m.tip_plane_m))
-            and len(line) >= 2
-            and np.all(np.isfinite(line))
-        ):
+        if angle is not None and ok:  # (the rest checked where used: _tracked)
             self._shape = _Shape(
-                angle, line, back, clamp, m.tip_plane_m, float(hub_w), m.beam_width_m, smeared
+                angle,
+                m.centreline_plane_m,
+                back,
+                clamp,
+                m.tip_plane_m,
+                float(hub_w),
+                m.beam_width_m,
+                smeared,
             )
 
     # -- regions ----------------------------------------------------------------------
@@ -360,7 +359,13 @@ class RegionReader:
         or when the crossings lie off the turned centre line by more than
         :data:`_TRACK_GATE_M` (the beam bent otherwise, or jumped)."""
         track = self._shape
-        if track is None:
+        if (
+            track is None
+            or len(track.line) < 2
+            or not np.all(np.isfinite(track.line))
+            or not np.all(np.isfinite(track.clamp))
+            or not np.all(np.isfinite(track.tip))
+        ):
             return None
         turn = angle - track.angle
         c, s = math.cos(turn), math.sin(turn)
@@ -381,7 +386,7 @@ class RegionReader:
             track.smeared,
             _TRACK_MARGIN_M,
         )
-        return self._read_mask(p1, p2, w, *tubes, shape, profiles=True)
+        return self._read_mask(p2, w, *tubes, shape, profiles=True)
 
     def _predicted(
         self,
@@ -470,15 +475,15 @@ class RegionReader:
             self._smeared(m),
             0.0,
         )
-        return self._read_mask(p1, p2, w, *tubes, shape, profiles=profiles)
+        return self._read_mask(p2, w, *tubes, shape, profiles=profiles)
 
     def _read_mask(
         self,
-        p1: NDArray[np.float64],
         p2: NDArray[np.float64],
         w: float,
         tubes: list[tuple[NDArray[np.float64], float]],
         out_len: float,
+        d0: NDArray[np.float64],
         shape: tuple[int, int],
         *,
         profiles: bool,
@@ -488,9 +493,9 @@ class RegionReader:
         chord, a strip ``w`` wide: its steps, each profile's samples) out to ``out_len``
         along the chord: each sample's bilinear pixels and a pixel more either way (the
         same points, computed here in another order, may round to the next pixel).
-        Without ``profiles``, the band the profiles lie in instead (a tube, cheaper)."""
+        Without ``profiles``, the band the profiles lie in instead (a tube, cheaper).
+        ``d0``: the chord's direction."""
         px_m = self.measurer.px_m
-        d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
         if not profiles:
             band = (np.array([p2, p2 + out_len * d0]), follow_half_width(w) + 2 * px_m)
             return self._tubes(shape, [band, *tubes])
@@ -520,12 +525,12 @@ class RegionReader:
         beam_w: float,
         smeared: bool,
         grow: float,
-    ) -> tuple[list[tuple[NDArray[np.float64], float]], float]:
+    ) -> tuple[list[tuple[NDArray[np.float64], float]], float, NDArray[np.float64]]:
         """:meth:`_read`'s tubes of a measurement's geometry (plane, m: the hub's back end
         and clamp, the tip, the centre line, the hub's search width, the beam's measured
         width, whether it was smeared), each ``grow`` wider and the bands that much
-        longer; and how far out along the chord from ``p2`` the outward cross-profiles
-        were read (:meth:`_read_mask`)."""
+        longer; how far out along the chord from ``p2`` the outward cross-profiles were
+        read (:meth:`_read_mask`), and the chord's direction."""
         cal = self.measurer.calibration
         px_m = self.measurer.px_m
         # ``w``: the outward band's width (the strip's on the circles, or the hint); the
@@ -559,7 +564,7 @@ class RegionReader:
         tubes.append((hub_line, 0.75 * hub_w + reach + grow))
         faces = np.array([back - hub_w * e, clamp + hub_w * e])
         tubes.append((faces, 0.5 * hub_w + pad + grow))
-        return tubes, max(out_end, 0.0)
+        return tubes, max(out_end, 0.0), d0
 
     def _smeared(self, m: FrameMeasurement) -> bool:
         return math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px
