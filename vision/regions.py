@@ -13,14 +13,22 @@ the measurement reads (what it reads is found in 8 x 8 blocks, a segment being
    their chord, outward past the tip and inward over the hub), widened by the reach of
    the edge scans; how far the band runs behind the pivot comes from the previous
    frame's hub (the track), the whole beam length without one, and a previous frame
-   that was smeared (the track too) widens the band by the smeared scans' reach;
+   that was smeared (the track too) widens the band by the smeared scans' reach. With
+   the previous frame's geometry (the next frame of a run measured from its parts),
+   the band is instead the region the check asked of that frame (4.), turned about the
+   pivot as the chord through the crossings turned and widened by the motion between
+   frames, unless the crossings lie off that turned centre line (the beam bent
+   otherwise): ~0.07 Mpx less of a 3 Mpx frame of the bench's run;
 3. the measurement, on a full-size image whose other pixels are one gray level (the
    median of the circles: a constant holds no strip, so a part not decoded cannot look
    like beam or hub);
 4. the check: the region the measurement read, from its result (the band to the hub's
    back end and past the tip, the edge scans about the hub and the beam, the tip's and
    the clamp's face searches), must lie in what was decoded; a miss decodes the rest of
-   that region and measures again, once.
+   that region and measures again, once. Outward of the crossings the rough location
+   reads cross-profiles a step (2.5 beam widths) apart, at places the crossings fix:
+   where the band was predicted from the track, the check takes those profiles' pixels
+   (a fifth or so of their band's segments on the bench's camera), not the band.
 
 A frame refused on its parts, a check missed twice, or crossings not found (a frame
 without a beam, a beam that jumped out of the previous frame's band) is decoded whole and
@@ -35,6 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -62,6 +71,7 @@ from vision.locate import (
 from vision.measure import Measurer
 
 _BLOCK_PX = 8
+_BLOCK_BITS = 3  # 2**3 = _BLOCK_PX
 #: Reach of the edge scans beyond a strip's half width (px): the scan's margin, the
 #: widest window and the slant of a scan line across the strip (up to sqrt 2), rounded up.
 _SCAN_REACH_PX = 40.0
@@ -82,6 +92,17 @@ _OFF_CHORD_WIDTHS = 2.0
 #: beam's slope at its root against the chord: up to ~10 degrees on the fast set, under
 #: 5 on the others): the band there is a fan of three, the chord's and this either side.
 _HUB_FAN_RAD = math.radians(12.0)
+#: With a track of the last frame's geometry, the band is what the check asked of that
+#: frame, turned about the pivot as the chord through the crossings turned, and widened
+#: by this much (m): beyond the rotation, a bending beam's centre line, hub and tip
+#: moved up to 9 mm between frames of the bench's 60 s run (15 frames/s: none of its
+#: 900 frames regrew at 10 mm, 375 did at 5 mm); the rest the check finds and the
+#: reader decodes.
+_TRACK_MARGIN_M = 0.015
+#: The turned track is used only when the crossings lie this close to its centre line
+#: (m; up to 4 mm on that run): farther, the beam changed shape (or the frame is not the
+#: next of the same view) and the band is predicted from the crossings alone.
+_TRACK_GATE_M = 0.01
 
 
 @dataclass
@@ -92,7 +113,23 @@ class RegionStats:
     parts: int = 0
     whole: int = 0
     regrown: int = 0
+    #: frames whose band was predicted from the last frame's geometry (the track)
+    tracked: int = 0
     decoded_fraction: list[float] = field(default_factory=list)
+
+
+class _Shape(NamedTuple):
+    """The track's geometry: what the check asked of the last frame measured from its
+    parts (plane, m), and the direction of that frame's chord through its crossings."""
+
+    angle: float  # rad, of the chord from the inner crossing to the outer
+    line: NDArray[np.float64]  # (K, 2) the beam's centre line
+    back: NDArray[np.float64]  # the hub's back end and the clamp, on its axis
+    clamp: NDArray[np.float64]
+    tip: NDArray[np.float64]
+    hub_w: float  # the hub's search width
+    beam_w: float  # the beam's measured width (NaN: none)
+    smeared: bool
 
 
 class RegionReader:
@@ -121,6 +158,8 @@ class RegionReader:
         #: The track: how much farther than the edge scans the previous frame's smeared
         #: edges were read (m; 0 when it was not smeared).
         self.smear_m = 0.0
+        #: The track: the last frame's geometry, when it was measured from its parts.
+        self._shape: _Shape | None = None
         self.stats = RegionStats()
 
     # -- entry point ------------------------------------------------------------------
@@ -129,10 +168,11 @@ class RegionReader:
         ``ok=False`` with the decoder's reason, as a full decode does."""
         layout = jpeg_layout(data) if self.parts and self.measurer.method == "default" else None
         if layout is not None:
-            m = self._measure_parts(layout)
-            if m is not None:
+            got = self._measure_parts(layout)
+            if got is not None:
+                m, angle = got
                 self.stats.parts += 1
-                self._keep_track(m)
+                self._keep_track(m, angle)
                 return m
         self.stats.whole += 1
         try:
@@ -145,7 +185,7 @@ class RegionReader:
         return m
 
     # -- the parts --------------------------------------------------------------------
-    def _measure_parts(self, layout: JpegLayout) -> FrameMeasurement | None:
+    def _measure_parts(self, layout: JpegLayout) -> tuple[FrameMeasurement, float] | None:
         # the masks below are of 8 x 8 blocks (what the measurement reads is found to
         # the block); a segment is ``seg_cols`` of them across (and an MCU's block rows
         # down: one gray, two of a colour JPEG whose Y is sampled twice vertically)
@@ -182,7 +222,14 @@ class RegionReader:
             return None
         p1, p2, shown = found
         w0 = outward_width(shown, self.measurer.calibration.beam_width_m)
-        want = self._predicted(p1, p2, w0, shape)
+        d0 = p2 - p1
+        angle = math.atan2(float(d0[1]), float(d0[0]))
+        want = self._tracked(p1, p2, angle, w0, shape)
+        tracked = want is not None
+        if want is None:
+            want = self._predicted(p1, p2, w0, shape)
+        else:
+            self.stats.tracked += 1
         for attempt in range(2):
             new = _missing_segments(want, done, seg_cols, seg_rows)
             if new.size:
@@ -198,10 +245,12 @@ class RegionReader:
             m = self.measurer.measure(image_of(layout, canvas), crossings_m=found)
             if not m.ok:
                 return None
-            read = self._read(m, p1, p2, w0, shape)
+            # (the outward profiles one by one where the band was predicted from the
+            # track; else the whole band they lie in, which that prediction covers)
+            read = self._read(m, p1, p2, w0, shape, profiles=tracked)
             if _missing_segments(read, done, seg_cols, seg_rows).size == 0:
                 self.stats.decoded_fraction.append(float(done.mean()))
-                return m
+                return m, angle
             # Read beyond what was decoded: decode that, and the band's whole reach
             # behind the pivot (a hub cut short by what was not decoded reads farther
             # once it is decoded), and measure again.
@@ -244,17 +293,34 @@ class RegionReader:
         self.hub_back_m = None
         self.hub_w_m = math.nan
         self.smear_m = 0.0
+        self._shape = None
 
-    def _keep_track(self, m: FrameMeasurement) -> None:
+    def _keep_track(self, m: FrameMeasurement, angle: float | None = None) -> None:
+        """Keep what the next frame's band is predicted from; ``angle``: the chord's
+        direction, of a frame measured from its parts (None: no shape kept)."""
         if not m.ok:
             self.lose_track()
             return
-        self.smear_m = self._smear_reach_m() if self._smeared(m) else 0.0
-        back = self.measurer.calibration.to_plane(m.hub_line_px[:1])[0]
+        smeared = self._smeared(m)
+        self.smear_m = self._smear_reach_m() if smeared else 0.0
+        ends = self.measurer.calibration.to_plane(m.hub_line_px)
+        back, clamp = ends[0], ends[1]
         hub_w = m.hub_search_width_m
         ok = np.all(np.isfinite(back)) and math.isfinite(hub_w)
         self.hub_back_m = float(np.hypot(*back)) if ok else None
         self.hub_w_m = float(hub_w) if ok else math.nan
+        self._shape = None
+        if angle is not None and ok:  # (the rest checked where used: _tracked)
+            self._shape = _Shape(
+                angle,
+                m.centreline_plane_m,
+                back,
+                clamp,
+                m.tip_plane_m,
+                float(hub_w),
+                m.beam_width_m,
+                smeared,
+            )
 
     # -- regions ----------------------------------------------------------------------
     def _ring_segments(self, layout: JpegLayout) -> NDArray[np.intp]:
@@ -277,6 +343,50 @@ class RegionReader:
             got.flags.writeable = False
             self._ring_segs[key] = got
         return got
+
+    def _tracked(
+        self,
+        p1: NDArray[np.float64],
+        p2: NDArray[np.float64],
+        angle: float,
+        w: float,
+        shape: tuple[int, int],
+    ) -> NDArray[np.bool_] | None:
+        """The blocks the measurement should read, from the track: the region the check
+        asked of the last frame (:meth:`_read`'s tubes), its geometry turned about the
+        pivot by the turn of the chord through the crossings, about this frame's
+        crossings, every tube widened by :data:`_TRACK_MARGIN_M`. None without a track,
+        or when the crossings lie off the turned centre line by more than
+        :data:`_TRACK_GATE_M` (the beam bent otherwise, or jumped)."""
+        track = self._shape
+        if (
+            track is None
+            or len(track.line) < 2
+            or not np.all(np.isfinite(track.line))
+            or not np.all(np.isfinite(track.clamp))
+            or not np.all(np.isfinite(track.tip))
+        ):
+            return None
+        turn = angle - track.angle
+        c, s = math.cos(turn), math.sin(turn)
+        rot = np.array([[c, s], [-s, c]])  # row vectors: p @ rot turns p by ``turn``
+        line = track.line @ rot
+        if _off_line(np.array([p1, p2]), line) > _TRACK_GATE_M:
+            return None
+        tubes = self._read_tubes(
+            p1,
+            p2,
+            w,
+            track.back @ rot,
+            track.clamp @ rot,
+            track.tip @ rot,
+            line,
+            track.hub_w,
+            track.beam_w,
+            track.smeared,
+            _TRACK_MARGIN_M,
+        )
+        return self._read_mask(p2, w, *tubes, shape, profiles=True)
 
     def _predicted(
         self,
@@ -343,12 +453,84 @@ class RegionReader:
         p2: NDArray[np.float64],
         w: float,
         shape: tuple[int, int],
+        profiles: bool = True,
     ) -> NDArray[np.bool_]:
-        """The blocks a measurement read, from its result: the rough location's bands
-        (outward past the tip, inward past the hub's back end: two steps beyond where
-        each strip ended), the edge scans about the beam's and the hub's centre lines,
-        the clamp's and the back face's searches (a hub width either side of each) and
-        the tip's (its end face, up to four beam widths on)."""
+        """The blocks a measurement read, from its result: the rough location's
+        cross-profiles (outward past the tip, inward past the hub's back end: two steps
+        beyond where each strip ended; outward, each profile's samples, or without
+        ``profiles`` the band they lie in), the edge scans about the beam's and the
+        hub's centre lines, the clamp's and the back face's searches (a hub width either
+        side of each) and the tip's (its end face, up to four beam widths on)."""
+        back, clamp = self.measurer.calibration.to_plane(m.hub_line_px)
+        tubes = self._read_tubes(
+            p1,
+            p2,
+            w,
+            back,
+            clamp,
+            m.tip_plane_m,
+            m.centreline_plane_m,
+            m.hub_search_width_m,
+            m.beam_width_m,
+            self._smeared(m),
+            0.0,
+        )
+        return self._read_mask(p2, w, *tubes, shape, profiles=profiles)
+
+    def _read_mask(
+        self,
+        p2: NDArray[np.float64],
+        w: float,
+        tubes: list[tuple[NDArray[np.float64], float]],
+        out_len: float,
+        d0: NDArray[np.float64],
+        shape: tuple[int, int],
+        *,
+        profiles: bool,
+    ) -> NDArray[np.bool_]:
+        """The blocks of :meth:`_read_tubes`' tubes and of the outward cross-profiles
+        (:func:`vision.locate.locate`'s follow from the outer crossing ``p2`` along the
+        chord, a strip ``w`` wide: its steps, each profile's samples) out to ``out_len``
+        along the chord: each sample's bilinear pixels and a pixel more either way (the
+        same points, computed here in another order, may round to the next pixel).
+        Without ``profiles``, the band the profiles lie in instead (a tube, cheaper).
+        ``d0``: the chord's direction."""
+        px_m = self.measurer.px_m
+        if not profiles:
+            band = (np.array([p2, p2 + out_len * d0]), follow_half_width(w) + 2 * px_m)
+            return self._tubes(shape, [band, *tubes])
+        mask = self._tubes(shape, tubes)
+        step = max(_STEP_OUT_WIDTHS * w, 4 * px_m)
+        if out_len < step:
+            return mask
+        half = follow_half_width(w)
+        ts = np.arange(step, out_len + step / 2, step)
+        offs = np.arange(-half, half + 0.375 * px_m, 0.75 * px_m)
+        n = np.array([-d0[1], d0[0]])
+        pts = _profile_points(ts, p2, d0, offs * n[0], offs * n[1])
+        px = np.ascontiguousarray(self.measurer.calibration.to_px(pts), dtype=np.float64)
+        _mark_points(mask.view(np.uint8), px, _BLOCK_BITS)
+        return mask
+
+    def _read_tubes(
+        self,
+        p1: NDArray[np.float64],
+        p2: NDArray[np.float64],
+        w: float,
+        back: NDArray[np.float64],
+        clamp: NDArray[np.float64],
+        tip: NDArray[np.float64],
+        line: NDArray[np.float64],
+        hub_w: float,
+        beam_w: float,
+        smeared: bool,
+        grow: float,
+    ) -> tuple[list[tuple[NDArray[np.float64], float]], float, NDArray[np.float64]]:
+        """:meth:`_read`'s tubes of a measurement's geometry (plane, m: the hub's back end
+        and clamp, the tip, the centre line, the hub's search width, the beam's measured
+        width, whether it was smeared), each ``grow`` wider and the bands that much
+        longer; how far out along the chord from ``p2`` the outward cross-profiles were
+        read (:meth:`_read_mask`), and the chord's direction."""
         cal = self.measurer.calibration
         px_m = self.measurer.px_m
         # ``w``: the outward band's width (the strip's on the circles, or the hint); the
@@ -356,37 +538,33 @@ class RegionReader:
         # where it is not the calibration's (vision.locate.working_width).
         hint = cal.beam_width_m
         wb = w
-        if math.isfinite(m.beam_width_m):
-            wb = working_width(m.beam_width_m, hint)
+        if math.isfinite(beam_w):
+            wb = working_width(beam_w, hint)
             wb = max(w, wb if wb == hint else 1.15 * wb)
         reach = self._reach_m(wb)
         d0 = (p2 - p1) / np.linalg.norm(p2 - p1)
-        back, clamp = cal.to_plane(m.hub_line_px)
-        tip = m.tip_plane_m
-        line = m.centreline_plane_m
-        hub_w = m.hub_search_width_m
         hub_w = hub_w if math.isfinite(hub_w) else 3 * wb
-        half = follow_half_width(w) + 2 * px_m
-        half_in = follow_half_width(wb) + 2 * px_m
+        half_in = follow_half_width(wb) + 2 * px_m + grow
         out_end = float((tip - p2) @ d0) + 2 * max(_STEP_OUT_WIDTHS * w, 4 * px_m) + 4 * wb
         in_end = float((p1 - back) @ d0) + 2 * max(_STEP_IN_WIDTHS * wb, 4 * px_m)
-        tubes = [
-            (np.array([p2, p2 + max(out_end, 0.0) * d0]), half),
-            (np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in),
-        ]
+        out_end, in_end = out_end + grow, in_end + grow
+        # outward, the follow's cross-profiles alone (:meth:`_read_mask`): two steps
+        # past the strip's end at most (the last that found it, the one that did not)
+        tubes = [(np.array([p1, p1 - max(in_end, 0.0) * d0]), half_in)]
         beam_r = 0.75 * wb + reach
-        if self._smeared(m):
+        if smeared:
             beam_r += self._smear_reach_m()
-        tubes.append((line, beam_r))
+        tubes.append((line, beam_r + grow))
         # the tip's searches: single lines along the tangent, up to 4 widths on
         pad = 6 * self.measurer.px_m
-        tubes.append((np.vstack([tip, tip + 4.5 * wb * _unit(tip - line[-2])]), 0.5 * wb + pad))
+        tip_line = np.vstack([tip, tip + 4.5 * wb * _unit(tip - line[-2])])
+        tubes.append((tip_line, 0.5 * wb + pad + grow))
         e = _unit(clamp - back)
         hub_line = np.array([back - 0.5 * hub_w * e, clamp + 0.5 * hub_w * e])
-        tubes.append((hub_line, 0.75 * hub_w + reach))
+        tubes.append((hub_line, 0.75 * hub_w + reach + grow))
         faces = np.array([back - hub_w * e, clamp + hub_w * e])
-        tubes.append((faces, 0.5 * hub_w + pad))
-        return self._tubes(shape, tubes)
+        tubes.append((faces, 0.5 * hub_w + pad + grow))
+        return tubes, max(out_end, 0.0), d0
 
     def _smeared(self, m: FrameMeasurement) -> bool:
         return math.isfinite(m.blur_px) and m.blur_px > self.measurer.max_blur_px
@@ -589,6 +767,76 @@ def _tube_pixels(
             widest = side if j == first[i] else max(widest, side)
         thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
     return blk, thick
+
+
+@kernel
+def _profile_points(
+    t: NDArray[np.float64],
+    start: NDArray[np.float64],
+    direction: NDArray[np.float64],
+    dx: NDArray[np.float64],
+    dy: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """The points of cross-profiles at ``start + t direction`` (K), offsets (dx, dy) (M)
+    across: (K * M, 2), as :func:`vision.locate._offset_grid` makes them."""
+    out = np.empty((t.size * dx.size, 2))
+    for k in range(t.size):
+        x = start[0] + t[k] * direction[0]
+        y = start[1] + t[k] * direction[1]
+        for j in range(dx.size):
+            out[k * dx.size + j, 0] = x + dx[j]
+            out[k * dx.size + j, 1] = y + dy[j]
+    return out
+
+
+@kernel
+def _mark_points(mask: NDArray[np.uint8], px: NDArray[np.float64], bits: int) -> None:
+    """Set the blocks of ``mask`` (``2**bits`` px a side) holding the pixels a bilinear
+    sample at each point ``px`` (x, y) reads, and a pixel more either way: columns
+    ``floor(x) - 1 .. floor(x) + 2``, rows likewise (points off the image: none of it)."""
+    rows, cols = mask.shape
+    side = 1 << bits
+    # shifted a block so that the pixels are non-negative where a point can read the
+    # image (x > -2): truncation is then the floor, a shift the division
+    xmax, ymax = float(cols * side + 1), float(rows * side + 1)
+    shift = float(side)
+    l0 = l1 = l2 = l3 = -1
+    for i in range(px.shape[0]):
+        x, y = px[i, 0], px[i, 1]
+        if not (x > -2.0 and y > -2.0 and x < xmax and y < ymax):
+            continue  # NaN, or off the image
+        ix, iy = int(x + shift), int(y + shift)
+        c0 = max(((ix - 1) >> bits) - 1, 0)
+        c1 = min(((ix + 2) >> bits) - 1, cols - 1)
+        r0 = max(((iy - 1) >> bits) - 1, 0)
+        r1 = min(((iy + 2) >> bits) - 1, rows - 1)
+        if r0 == l0 and r1 == l1 and c0 == l2 and c1 == l3:
+            continue  # the last point's blocks (a profile's are fractions of a pixel apart)
+        l0, l1, l2, l3 = r0, r1, c0, c1
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                mask[r, c] = 1
+
+
+@kernel
+def _off_line(pts: NDArray[np.float64], line: NDArray[np.float64]) -> float:
+    """The largest distance of points ``pts`` (N, 2) from a polyline ``line`` (K, 2),
+    K >= 2 (a segment of no length: its end point)."""
+    worst = 0.0
+    for i in range(pts.shape[0]):
+        px, py = pts[i, 0], pts[i, 1]
+        near = math.inf
+        for k in range(line.shape[0] - 1):
+            ax, ay = line[k, 0], line[k, 1]
+            dx, dy = line[k + 1, 0] - ax, line[k + 1, 1] - ay
+            rx, ry = px - ax, py - ay
+            dd = dx * dx + dy * dy
+            t = (rx * dx + ry * dy) / dd if dd > 0 else 0.0
+            t = min(max(t, 0.0), 1.0)
+            gx, gy = rx - t * dx, ry - t * dy
+            near = min(near, gx * gx + gy * gy)
+        worst = max(worst, math.sqrt(near))
+    return worst
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:

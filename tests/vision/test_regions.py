@@ -457,3 +457,176 @@ def test_a_colour_frame_damaged_in_a_segment_is_refused_or_measured_close(scene)
     frames, cal = scene
     data = _driver_jpeg(_colour(frames[0]), quality=92)
     assert _flipped_and_measured_close(data, Measurer(cal), 8, 25) > 5
+
+
+@pytest.fixture(scope="module")
+def swing(vt):
+    """A run's frames (the scene's camera): the beam straight at 300 deg, turned 2 deg
+    on, then the same hub angle with the beam bent (its tip ~50 mm off the turned
+    straight beam, its crossings of the search circles a few mm), and one bent hard."""
+    spec = vt.make_spec(
+        camera=CAMERA,
+        pose=POSE,
+        noise_dn=3.0,
+        seed=9,
+        hub_length_m=0.6,
+        hub_width_m=0.05,
+        background_dn=30.0,
+    )
+    rng = np.random.default_rng(5)
+    frames = []
+    for hub_deg, slope in ((300.0, 0.0), (302.0, 0.0), (302.0, 0.09), (300.0, 0.2)):
+        fr = render_frame(spec, [vt.bent(math.radians(hub_deg), slope)], rng=rng)
+        frames.append(encode(fr.image, "jpeg", 90))
+    return frames, vt.truth_calibration(fr.truth)
+
+
+def test_the_track_turned_with_the_chord_decodes_less_and_measures_the_same(swing) -> None:
+    """The next frame of a run, the beam turned: its band is the last frame's read region
+    turned with the chord (the track), smaller than the band from the crossings alone;
+    measured at once, as from the whole frame."""
+    frames, cal = swing
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    alone = RegionReader(measurer)
+    regrown = []
+    for data in frames[:2]:
+        _same(reader.measure(data), measurer.measure(decode(data)))
+        regrown.append(reader.stats.regrown)
+        alone.lose_track()
+        alone.measure(data)
+    # the first frame's hub reaches past the band decoded without a track: regrown
+    assert regrown == [1, 1]
+    assert (reader.stats.parts, reader.stats.tracked) == (2, 1)
+    assert alone.stats.tracked == 0
+    assert reader.stats.decoded_fraction[1] < 0.9 * alone.stats.decoded_fraction[1]
+
+
+def test_a_beam_bent_beyond_the_tracks_margin_is_regrown(swing) -> None:
+    """The beam bends between two frames more than the track's margin (its tip moves
+    ~50 mm, its crossings little): the band turned from the last frame misses the tip,
+    the check finds it, the rest is decoded and the frame measured again, as from the
+    whole frame."""
+    frames, cal = swing
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    regrown = []
+    for data in (frames[1], frames[2]):
+        _same(reader.measure(data), measurer.measure(decode(data)))
+        regrown.append(reader.stats.regrown)
+    assert regrown == [1, 2]  # the first: its long hub, untracked (as above)
+    assert (reader.stats.parts, reader.stats.tracked) == (2, 1)
+
+
+def test_a_beam_whose_shape_changed_is_not_tracked(swing) -> None:
+    """A straight beam, then one bent hard (tip slope 0.2 rad): its crossings lie 12 mm
+    off the last frame's centre line turned with the chord, so the band is predicted from
+    the crossings alone (not the track), and measured as from the whole frame;
+    lose_track forgets the shape."""
+    frames, cal = swing
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    for data in (frames[0], frames[3]):
+        got = reader.measure(data)
+        assert got.ok, got.reason
+        _same(got, measurer.measure(decode(data)))
+    assert (reader.stats.parts, reader.stats.tracked) == (2, 0)
+    assert reader._shape is not None
+    reader.lose_track()
+    assert reader._shape is None
+
+
+def test_the_check_holds_every_outward_profile_searched(vt, nominal_spec, monkeypatch) -> None:
+    """The check marks the outward follow's cross-profiles sample by sample: every pixel
+    of every profile the follow searched (its batches' rows up to the one that lost the
+    strip), read on the whole frame, lies in a block the check asks for (beambench's
+    camera: the profiles reach past the tubes about the beam)."""
+    import vision.locate as locate_mod
+    from vision.locate import crossings, outward_width
+
+    rng = np.random.default_rng(8)
+    frames = []
+    for hub_deg, slope in ((300.0, 0.05), (35.0, -0.08), (170.0, 0.0)):
+        fr = render_frame(nominal_spec, [vt.bent(math.radians(hub_deg), slope)], rng=rng)
+        frames.append(fr.image)
+    cal = vt.truth_calibration(fr.truth)
+    measurer = Measurer(cal)
+    reader = RegionReader(measurer)
+    real_points, real_batch = locate_mod.bilinear_points, locate_mod._follow_batch
+    # each follow batch's sample points, and how many of its profiles were searched
+    batches: list[tuple[np.ndarray, int]] = []
+    grids: list[np.ndarray] = []
+
+    def points(img, px):
+        grids.append(np.array(px))
+        return real_points(img, px)
+
+    def batch(vals, *args):
+        got = real_batch(vals, *args)
+        batches.append((grids[-1].reshape(vals.shape[0], vals.shape[1], 2), got[0] + got[4]))
+        return got
+
+    for image in frames:
+        batches.clear()
+        grids.clear()
+        monkeypatch.setattr(locate_mod, "bilinear_points", points)
+        monkeypatch.setattr(locate_mod, "_follow_batch", batch)
+        m = measurer.measure(image)
+        monkeypatch.undo()
+        assert m.ok, m.reason
+        found = crossings(image, reader._circles)
+        assert found is not None
+        p1, p2, shown = found
+        w0 = outward_width(shown, cal.beam_width_m)
+        shape = ((image.shape[0] + 7) // 8, (image.shape[1] + 7) // 8)
+        mask = reader._read(m, p1, p2, w0, shape, profiles=True)
+        # the outward follow's batches: the first, until one that lost the strip
+        searched = []
+        for grid, rows in batches:
+            searched.append(grid[:rows].reshape(-1, 2))
+            if rows < len(grid):
+                break
+        px = np.concatenate(searched)
+        h, w = image.shape  # samples off the image read nothing (NaN)
+        px = px[(px[:, 0] >= 0) & (px[:, 1] >= 0) & (px[:, 0] <= w - 1) & (px[:, 1] <= h - 1)]
+        assert len(px) > 1000
+        x0 = np.minimum(np.floor(px[:, 0]).astype(int), image.shape[1] - 2)
+        y0 = np.minimum(np.floor(px[:, 1]).astype(int), image.shape[0] - 2)
+        for dx in (0, 1):
+            for dy in (0, 1):
+                assert np.all(mask[(y0 + dy) // 8, (x0 + dx) // 8])
+        # and the band they lie in (the check without a track) holds all of that, and
+        # more: what a tracked frame does not decode
+        band = reader._read(m, p1, p2, w0, shape, profiles=False)
+        assert np.all(band >= mask) and band.sum() > 1.05 * mask.sum()
+
+
+def test_mark_points_marks_the_blocks_of_each_samples_pixels_and_one_more() -> None:
+    """_mark_points against numpy: the blocks of columns floor(x) - 1 .. floor(x) + 2 and
+    rows likewise, clipped to the mask; NaN and points off the image mark nothing."""
+    from vision.regions import _mark_points
+
+    rng = np.random.default_rng(2)
+    rows, cols = 13, 21
+    px = np.column_stack(
+        [rng.uniform(-20, cols * 8 + 20, 400), rng.uniform(-20, rows * 8 + 20, 400)]
+    )
+    px[::37] = np.nan
+    px[5] = (1e300, 3.0)
+    px[6] = (-1.5, -1.99)  # reads nothing, marks the corner block (a pixel more)
+    px[7:11] = [(0.0, 0.0), (cols * 8 - 1.0, rows * 8 - 1.0), (cols * 8 + 0.9, 4.0), (3.0, -2.0)]
+    px[11:60] = px[11] + np.arange(49)[:, None] * 0.3  # close points, as a profile's
+    got = np.zeros((rows, cols), np.uint8)
+    _mark_points(got, px, 3)
+    want = np.zeros((rows, cols), bool)
+    for x, y in px:
+        if not (np.isfinite(x) and np.isfinite(y) and x > -2 and y > -2):
+            continue
+        if not (x < cols * 8 + 1 and y < rows * 8 + 1):
+            continue
+        fx, fy = int(np.floor(x)), int(np.floor(y))
+        c = np.clip(np.arange(fx - 1, fx + 3), 0, cols * 8 - 1) // 8
+        r = np.clip(np.arange(fy - 1, fy + 3), 0, rows * 8 - 1) // 8
+        want[np.ix_(r, c)] = True
+    np.testing.assert_array_equal(got.view(bool), want)
+    assert want[0, 0] and want.sum() > 100
