@@ -13,7 +13,8 @@ tip-lateral error over the last three drive cycles (reciprocating) or the whole 
 On the damped scene radau5 also runs at fixed steps (``fixed_step_s``, no error control), the
 step chosen per mesh as Exudyn's rows choose theirs, with 3 stages (order 5) and with 5
 (order 9, ``stages=5``: longer steps at equal error); those rows' errors are only the
-measured ones (``auto`` never picks a fixed step).
+measured ones (``auto`` picks fixed steps only for gauged runs, whose strains ask an
+rtol of 5e-6 or tighter, with their time error measured; its rows here have no gauges).
 
 If Exudyn is installed (the ``peers`` extra), its ANCF cable (:mod:`pipelines.bench.peers_exudyn`)
 runs on the same scenes in the same process. Its damping is strain-rate (Kelvin-Voigt)
