@@ -62,6 +62,7 @@ from vision.jpeg_regions import (
 )
 from vision.locate import (
     SearchCircles,
+    _offset_grid,  # the follow's own profile points: the check marks exactly those
     crossings,
     follow_half_width,
     outward_width,
@@ -507,7 +508,7 @@ class RegionReader:
         ts = np.arange(step, out_len + step / 2, step)
         offs = np.arange(-half, half + 0.375 * px_m, 0.75 * px_m)
         n = np.array([-d0[1], d0[0]])
-        pts = _profile_points(ts, p2, d0, offs * n[0], offs * n[1])
+        pts = _offset_grid(ts, p2, d0, offs * n[0], offs * n[1])
         px = np.ascontiguousarray(self.measurer.calibration.to_px(pts), dtype=np.float64)
         _mark_points(mask.view(np.uint8), px, _BLOCK_BITS)
         return mask
@@ -767,26 +768,6 @@ def _tube_pixels(
             widest = side if j == first[i] else max(widest, side)
         thick[i] = min(2 * math.ceil(widest / block_px) + 3, 32767)
     return blk, thick
-
-
-@kernel
-def _profile_points(
-    t: NDArray[np.float64],
-    start: NDArray[np.float64],
-    direction: NDArray[np.float64],
-    dx: NDArray[np.float64],
-    dy: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """The points of cross-profiles at ``start + t direction`` (K), offsets (dx, dy) (M)
-    across: (K * M, 2), as :func:`vision.locate._offset_grid` makes them."""
-    out = np.empty((t.size * dx.size, 2))
-    for k in range(t.size):
-        x = start[0] + t[k] * direction[0]
-        y = start[1] + t[k] * direction[1]
-        for j in range(dx.size):
-            out[k * dx.size + j, 0] = x + dx[j]
-            out[k * dx.size + j, 1] = y + dy[j]
-    return out
 
 
 @kernel

@@ -28,9 +28,9 @@ POSE = CameraPoseConfig(
 )
 
 
-@pytest.fixture(scope="module")
-def scene(vt):
-    spec = vt.make_spec(
+def _scene_spec(vt):
+    """The scenes' renderer setting: the test camera, a 0.6 m hub, 3 DN of noise."""
+    return vt.make_spec(
         camera=CAMERA,
         pose=POSE,
         noise_dn=3.0,
@@ -39,6 +39,11 @@ def scene(vt):
         hub_width_m=0.05,
         background_dn=30.0,
     )
+
+
+@pytest.fixture(scope="module")
+def scene(vt):
+    spec = _scene_spec(vt)
     rng = np.random.default_rng(4)
     frames = []
     for hub_deg, slope in ((250.0, 0.03), (262.0, -0.05), (318.0, 0.06), (300.0, 0.0)):
@@ -464,15 +469,7 @@ def swing(vt):
     """A run's frames (the scene's camera): the beam straight at 300 deg, turned 2 deg
     on, then the same hub angle with the beam bent (its tip ~50 mm off the turned
     straight beam, its crossings of the search circles a few mm), and one bent hard."""
-    spec = vt.make_spec(
-        camera=CAMERA,
-        pose=POSE,
-        noise_dn=3.0,
-        seed=9,
-        hub_length_m=0.6,
-        hub_width_m=0.05,
-        background_dn=30.0,
-    )
+    spec = _scene_spec(vt)
     rng = np.random.default_rng(5)
     frames = []
     for hub_deg, slope in ((300.0, 0.0), (302.0, 0.0), (302.0, 0.09), (300.0, 0.2)):
